@@ -1,0 +1,7 @@
+"""``python -m pickplace``: the same as the ``pickplace`` command."""
+
+import sys
+
+from pickplace.cli import main
+
+sys.exit(main())

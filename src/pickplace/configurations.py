@@ -1,0 +1,91 @@
+"""Joint configurations for the four tcp targets, each solved by IK and checked for collisions.
+
+The chain follows the motion: ``pregrasp`` is solved from ``home``, ``grasp`` from ``pregrasp`` (so the
+descent stays on one IK branch), ``preplace`` from ``pregrasp`` and ``place`` from ``preplace``. Each is
+checked with the collision policy of the moment it is reached: open gripper around the resting cube at the
+grasp, cube carried at ``preplace`` and ``place`` (where it may touch the table).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pickplace.collision import CollisionChecker, CollisionPolicy
+from pickplace.errors import UnreachableTarget
+from pickplace.gripper import GripperGeometry
+from pickplace.ik import IKConfig, IKResult, solve_ik
+from pickplace.kinematics import frame_pose
+from pickplace.model import Robot
+from pickplace.targets import GraspTargets, T_tcp_cube, grasp_targets
+
+
+@dataclass(frozen=True)
+class GraspConfigurations:
+    """IK solutions of the four targets.
+
+    Attributes:
+        targets: The tcp poses they reach.
+        pregrasp, grasp, preplace, place: The IK results (``.q`` is the arm configuration (6,) in rad).
+        held_finger_m: Finger travel while the cube is held (m).
+    """
+
+    targets: GraspTargets
+    pregrasp: IKResult
+    grasp: IKResult
+    preplace: IKResult
+    place: IKResult
+    held_finger_m: float
+
+    def results(self) -> list[IKResult]:
+        """The four results in visiting order."""
+        return [self.pregrasp, self.grasp, self.preplace, self.place]
+
+
+def solve_grasp_configurations(
+    robot: Robot,
+    ik_config: IKConfig | None = None,
+    cube_pos_m: np.ndarray | None = None,
+    cube_yaw_rad: float | None = None,
+) -> GraspConfigurations:
+    """Targets for the scene's cube and goal, solved to joint configurations.
+
+    Raises:
+        UnreachableTarget: naming the target that cannot be reached collision free.
+    """
+    scene = robot.scene
+    geom = GripperGeometry.measure(robot)
+    T_home = frame_pose(robot.pin, robot.pin.createData(), robot.pin_q(robot.home_q), robot.pin_tcp_frame)
+    cube_yaw = scene.cube_yaw_rad if cube_yaw_rad is None else cube_yaw_rad
+    targets = grasp_targets(scene, geom.pad_half_height_m, T_home, cube_pos_m, cube_yaw)
+    held = geom.contact_travel_m(scene.cube_size_m)
+    free = CollisionChecker(robot, CollisionPolicy(margin_m=0.0))
+    carrying = CollisionPolicy(margin_m=0.0, cube_held=True, allow_cube_table=False, finger_m=held)
+    placing = CollisionPolicy(margin_m=0.0, cube_held=True, allow_cube_table=True, finger_m=held)
+    rel = T_tcp_cube(targets, cube_yaw)
+    carry = CollisionChecker(robot, carrying, T_tcp_cube=rel)
+    place = CollisionChecker(robot, placing, T_tcp_cube=rel)
+
+    def solve(name: str, q0: np.ndarray, checker: CollisionChecker) -> IKResult:
+        try:
+            return solve_ik(robot, dict(targets.named())[name], q0, name, ik_config, checker.is_valid)
+        except UnreachableTarget as exc:
+            raise _with_collisions(exc, checker, robot, dict(targets.named())[name], q0, ik_config) from None
+
+    pre = solve("pregrasp", robot.home_q, free)
+    grasp = solve("grasp", pre.q, free)
+    preplace = solve("preplace", pre.q, carry)
+    placed = solve("place", preplace.q, place)
+    return GraspConfigurations(targets, pre, grasp, preplace, placed, held)
+
+
+def _with_collisions(exc: UnreachableTarget, checker: CollisionChecker, robot: Robot, target, q0,
+                     ik_config: IKConfig | None) -> UnreachableTarget:
+    """Add the colliding geoms to an IK failure caused by collisions."""
+    if "collision" not in exc.reason:
+        return exc
+    q = solve_ik(robot, target, q0, exc.target, ik_config).q
+    pairs = ", ".join(f"{a} <-> {b}" for a, b in checker.colliding_pairs(q))
+    return UnreachableTarget(exc.target, f"{exc.reason}; colliding: {pairs}", exc.position_error_m,
+                             exc.orientation_error_rad)

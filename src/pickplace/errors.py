@@ -1,0 +1,86 @@
+"""The exception tree of pickplace.
+
+Every error the library raises on purpose derives from :class:`PickPlaceError`,
+so a caller (or the CLI) can catch one type and print one clear line. Each
+subclass carries the numbers that explain it in its message.
+"""
+
+from __future__ import annotations
+
+
+class PickPlaceError(Exception):
+    """Base class of every error raised on purpose by pickplace."""
+
+
+class ConfigError(PickPlaceError, ValueError):
+    """A configuration value is invalid.
+
+    The message names the field, the value and what is allowed, e.g.
+    ``scene.cube_mass_kg = -1.0 is invalid: must be > 0 kg``.
+
+    Attributes:
+        field: Dotted name of the offending field.
+        value: The rejected value.
+        allowed: Human-readable description of the allowed values.
+    """
+
+    def __init__(self, field: str, value: object, allowed: str) -> None:
+        self.field = field
+        self.value = value
+        self.allowed = allowed
+        super().__init__(f"{field} = {value!r} is invalid: {allowed}")
+
+
+class ModelError(PickPlaceError):
+    """The MJCF model could not be built or a named element does not exist."""
+
+
+class UnreachableTarget(PickPlaceError):
+    """Inverse kinematics could not reach a target pose.
+
+    Attributes:
+        target: Name of the target (e.g. ``"pregrasp"``).
+        position_error_m: Residual position error at the best iterate (m).
+        orientation_error_rad: Residual orientation error at the best iterate (rad).
+    """
+
+    def __init__(
+        self,
+        target: str,
+        reason: str,
+        position_error_m: float = float("nan"),
+        orientation_error_rad: float = float("nan"),
+    ) -> None:
+        self.target = target
+        self.reason = reason
+        self.position_error_m = position_error_m
+        self.orientation_error_rad = orientation_error_rad
+        super().__init__(
+            f"target '{target}' is unreachable: {reason} "
+            f"(residual {position_error_m * 1e3:.3g} mm, {orientation_error_rad:.3g} rad)"
+        )
+
+
+class CollisionError(PickPlaceError):
+    """A configuration that must be collision-free is in collision.
+
+    Attributes:
+        pairs: The colliding geom pairs, as ``(geom_a, geom_b)`` names.
+    """
+
+    def __init__(self, what: str, pairs: list[tuple[str, str]]) -> None:
+        self.pairs = pairs
+        names = ", ".join(f"{a} <-> {b}" for a, b in pairs) or "unknown geoms"
+        super().__init__(f"{what} is in collision: {names}")
+
+
+class PlanningFailed(PickPlaceError):
+    """The motion planner could not produce a path (invalid start/goal or budget exhausted)."""
+
+
+class TimingFailed(PickPlaceError):
+    """Time scaling (TOPP-RA) failed for a path."""
+
+
+class GraspFailed(PickPlaceError):
+    """A grasp could not be established or was lost."""

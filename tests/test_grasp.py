@@ -1,0 +1,193 @@
+"""Tests of pickplace.grasp: friction cones, wrenches, 6D force closure, antipodal test."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from pickplace.errors import ConfigError
+from pickplace.grasp import (
+    Contact,
+    analyze_grasp,
+    antipodal,
+    contact_wrenches,
+    force_closure,
+    friction_cone_edges,
+    grasp_wrenches,
+    in_friction_cone,
+    origin_in_hull_lp,
+)
+
+HALF = 0.02  # half-size of a 40 mm cube (m); also the torque scale
+CENTRE = np.zeros(3)
+TORSION_M = 0.005
+
+
+def pinch(mu: float, torsion_m: float = TORSION_M, shift: tuple[float, float] = (0.0, 0.0)) -> list[Contact]:
+    """Two fingers on the centres of the -x and +x faces, both shifted by (dy, dz) along the face."""
+    dy, dz = shift
+    return [
+        Contact(np.array([-HALF, dy, dz]), np.array([1.0, 0.0, 0.0]), mu, torsion_m),
+        Contact(np.array([HALF, dy, dz]), np.array([-1.0, 0.0, 0.0]), mu, torsion_m),
+    ]
+
+
+def is_antipodal(contacts: list[Contact], mu: float) -> bool:
+    c1, c2 = contacts
+    return antipodal(c1.position, c1.normal, c2.position, c2.normal, mu)
+
+
+def test_centred_soft_finger_pinch_is_force_closure() -> None:
+    contacts = pinch(1.0)
+    result = analyze_grasp(contacts, CENTRE, HALF)
+    assert result.force_closure
+    assert result.method == "qhull"
+    assert result.n_contacts == 2
+    assert result.margin == pytest.approx(0.2413, abs=1e-3)
+    assert origin_in_hull_lp(grasp_wrenches(contacts, CENTRE, HALF))
+    assert is_antipodal(contacts, 1.0)
+
+
+def test_point_contact_pinch_is_not_6d_force_closure() -> None:
+    # Two point contacts can only push/rub through points on the x axis: every force f applied at
+    # (±a, 0, 0) has zero moment about that axis, so no contact wrench has an x-torque component and
+    # the wrenches span only 5D. A twist about the line joining the fingers is unresisted; torsional
+    # (soft-finger) friction is what supplies that sixth direction.
+    contacts = pinch(1.0, torsion_m=0.0)
+    w = grasp_wrenches(contacts, CENTRE, HALF)
+    assert np.max(np.abs(w[:, 3])) == pytest.approx(0.0, abs=1e-15)
+    assert np.linalg.matrix_rank(w) == 5
+    result = analyze_grasp(contacts, CENTRE, HALF)
+    assert not result.force_closure
+    assert result.margin == pytest.approx(0.0, abs=1e-12)
+    assert result.method == "rank-deficient"
+    assert not origin_in_hull_lp(w)
+    assert is_antipodal(contacts, 1.0)  # the planar/line test does not see the twist
+
+
+def test_two_contacts_on_the_same_face() -> None:
+    n = np.array([1.0, 0.0, 0.0])
+    contacts = [
+        Contact([-HALF, -0.01, 0.0], n, 1.0, TORSION_M),
+        Contact([-HALF, 0.01, 0.0], n, 1.0, TORSION_M),
+    ]
+    result = analyze_grasp(contacts, CENTRE, HALF)
+    assert not result.force_closure
+    assert result.margin <= 1e-12
+    assert not is_antipodal(contacts, 1.0)
+
+
+def test_frictionless_pinch() -> None:
+    contacts = pinch(0.0)
+    result = analyze_grasp(contacts, CENTRE, HALF)
+    assert not result.force_closure
+    assert result.margin <= 1e-12
+    assert not is_antipodal(contacts, 0.0)
+
+
+@pytest.mark.parametrize("shift", [(0.005, 0.0), (0.0, 0.005)])
+def test_off_centre_pinch_has_smaller_margin(shift: tuple[float, float]) -> None:
+    centred = analyze_grasp(pinch(1.0), CENTRE, HALF)
+    off = analyze_grasp(pinch(1.0, shift=shift), CENTRE, HALF)
+    assert off.force_closure
+    assert off.margin == pytest.approx(0.2226, abs=1e-3)
+    assert off.margin < centred.margin - 0.01
+    assert is_antipodal(pinch(1.0, shift=shift), 1.0)
+
+
+def test_angled_pinch_outside_the_cone() -> None:
+    mu = 0.1  # cone half-angle atan(0.1) = 5.7 deg
+    dy = HALF * math.tan(math.radians(20.0))  # contact line at 20 deg to both normals
+    contacts = [
+        Contact([-HALF, -dy, 0.0], [1.0, 0.0, 0.0], mu, TORSION_M),
+        Contact([HALF, dy, 0.0], [-1.0, 0.0, 0.0], mu, TORSION_M),
+    ]
+    line = contacts[1].position - contacts[0].position
+    assert math.degrees(math.acos(line[0] / np.linalg.norm(line))) == pytest.approx(20.0, abs=1e-9)
+    assert not is_antipodal(contacts, mu)
+    assert is_antipodal(contacts, math.tan(math.radians(20.0)) + 1e-9)  # just wide enough
+    result = analyze_grasp(contacts, CENTRE, HALF)
+    assert not result.force_closure
+    assert result.margin < -0.1
+
+
+def test_margin_grows_with_mu() -> None:
+    margins = [analyze_grasp(pinch(mu), CENTRE, HALF).margin for mu in (0.2, 0.5, 1.0)]
+    assert margins == pytest.approx([0.1296, 0.2199, 0.2413], abs=1e-3)
+    assert all(b > a + 1e-3 for a, b in itertools.pairwise(margins))
+
+
+def test_margin_of_known_hulls() -> None:
+    cube = np.array(np.meshgrid(*[[-1.0, 1.0]] * 6)).reshape(6, -1).T  # {±1}^6: inscribed radius 1
+    assert force_closure(cube, 0).margin == pytest.approx(1.0, abs=1e-12)
+    cross = np.vstack([np.eye(6), -np.eye(6)])  # cross-polytope: inscribed radius 1/sqrt(6)
+    assert force_closure(cross, 0).margin == pytest.approx(1.0 / math.sqrt(6.0), abs=1e-12)
+    shifted = force_closure(cross + np.array([2.0, 0, 0, 0, 0, 0]), 0)  # origin outside
+    assert not shifted.force_closure
+    assert shifted.margin < 0.0
+    assert not origin_in_hull_lp(cross + np.array([2.0, 0, 0, 0, 0, 0]))
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.1, 0.5, 1.0, 2.0])
+@pytest.mark.parametrize("normal", [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [1.0, -2.0, 0.5]])
+def test_friction_cone_edges_make_atan_mu_with_normal(mu: float, normal: list[float]) -> None:
+    n = np.asarray(normal) / np.linalg.norm(normal)
+    edges = friction_cone_edges(n, mu, 8)
+    assert edges.shape == (8, 3)
+    np.testing.assert_allclose(edges @ n, 1.0, atol=1e-12)  # unit normal force
+    angles = np.arctan2(np.linalg.norm(np.cross(edges, n), axis=1), edges @ n)
+    np.testing.assert_allclose(angles, math.atan(mu), atol=1e-12)
+    assert friction_cone_edges(n, mu, 5).shape == (5, 3)
+    for edge in edges:
+        assert in_friction_cone(edge, n, mu)
+
+
+def test_in_friction_cone() -> None:
+    n = np.array([0.0, 0.0, 1.0])
+    assert in_friction_cone([0.4, 0.0, 1.0], n, 0.5)
+    assert in_friction_cone([0.3, 0.4, 1.0], n, 0.5)  # |f_t| = 0.5 = mu f_n: on the boundary
+    assert not in_friction_cone([0.3, 0.41, 1.0], n, 0.5)
+    assert not in_friction_cone([0.0, 0.0, -1.0], n, 0.5)  # pulling
+    assert in_friction_cone([0.0, 0.0, 2.0], n, 0.0)
+    assert not in_friction_cone([1e-6, 0.0, 2.0], n, 0.0)
+
+
+def test_torsional_wrenches() -> None:
+    w = contact_wrenches(
+        [0.0, 0.0, 0.0], [0.0, 0.0, 1.0], 0.5, [0.0, 0.0, 0.0], 0.02, torsional_friction_m=0.005
+    )
+    assert w.shape == (10, 6)
+    np.testing.assert_allclose(w[-2:], [[0, 0, 1, 0, 0, 0.25], [0, 0, 1, 0, 0, -0.25]], atol=1e-15)
+    # moment arm: a force along +x at (0, 0.02, 0) about the origin gives -z torque, scaled by 1/0.02
+    w = contact_wrenches([0.0, 0.02, 0.0], [1.0, 0.0, 0.0], 0.0, [0.0, 0.0, 0.0], 0.02, cone_edges=3)
+    np.testing.assert_allclose(w, np.tile([1.0, 0, 0, 0, 0, -1.0], (3, 1)), atol=1e-15)
+
+
+@pytest.mark.parametrize(
+    ("call", "field"),
+    [
+        (lambda: Contact([0.0, 0.0], [1.0, 0.0, 0.0], 1.0), "contact.position"),
+        (lambda: Contact([0.0, float("nan"), 0.0], [1.0, 0.0, 0.0], 1.0), "contact.position"),
+        (lambda: Contact([0.0, 0.0, 0.0], [0.0, 0.0, 0.0], 1.0), "contact.normal"),
+        (lambda: Contact([0.0, 0.0, 0.0], [2.0, 0.0, 0.0], 1.0), "contact.normal"),
+        (lambda: Contact([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], -0.1), "contact.mu"),
+        (lambda: Contact([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], float("nan")), "contact.mu"),
+        (lambda: Contact([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], 1.0, -0.001), "contact.torsional_friction_m"),
+        (lambda: analyze_grasp(pinch(1.0), CENTRE, 0.0), "torque_scale_m"),
+        (lambda: analyze_grasp(pinch(1.0), [0.0, 0.0], HALF), "p_ref"),
+        (lambda: analyze_grasp([], CENTRE, HALF), "contacts"),
+        (lambda: friction_cone_edges([0.0, 0.0, 1.0], 0.5, 2), "n_edges"),
+        (lambda: friction_cone_edges([0.0, 0.0, 1.0], -0.5), "mu"),
+        (lambda: in_friction_cone([0.0, 0.0], [0.0, 0.0, 1.0], 0.5), "force"),
+        (lambda: antipodal([0, 0, 0], [1, 0, 0], [1, 0, 0], [0, 0, 0], 0.5), "n2"),
+        (lambda: antipodal([0, 0, 0], [1, 0, 0], [1, 0, 0], [-1, 0, 0], -1.0), "mu"),
+        (lambda: force_closure(np.zeros((10, 5)), 2), "wrenches"),
+    ],
+)
+def test_bad_input_raises_config_error(call, field: str) -> None:
+    with pytest.raises(ConfigError) as info:
+        call()
+    assert info.value.field == field
