@@ -41,6 +41,9 @@ class BoxWorld:
     def is_valid(self, q: np.ndarray) -> bool:
         return bool(self.are_valid(np.asarray(q)[None])[0])
 
+    def all_valid(self, qs: np.ndarray) -> bool:
+        return bool(self.are_valid(qs).all())
+
     def colliding_pairs(self, q: np.ndarray) -> list[tuple[str, str]]:
         return [("arm", self.names[b]) for b in np.flatnonzero(self._inside(q)[0])]
 

@@ -81,58 +81,82 @@ class CollisionChecker:
         else:
             self._d.qpos[:] = world_qpos
         self._d.qpos[h.finger_qpos] = self.policy.finger_m
-        self._T_tcp_cube = T_tcp_cube or pin.SE3.Identity()
+        T_tcp_cube = T_tcp_cube or pin.SE3.Identity()
+        self._p_tcp_cube = T_tcp_cube.translation.copy()
+        self._R_tcp_cube = T_tcp_cube.rotation.copy()
+        self._cube_pos = slice(h.cube_qpos, h.cube_qpos + 3)
+        self._cube_quat = slice(h.cube_qpos + 3, h.cube_qpos + 7)
+        self._quat = np.empty(4)
         self.checks = 0
 
-        m = self._m
-        robot_geoms = np.isin(m.geom_bodyid, list(h.robot_bodies))
-        gripper_geoms = np.isin(m.geom_bodyid, list(h.gripper_bodies))
-        cube_geoms = m.geom_bodyid == h.cube_body
-        table_geoms = m.geom_bodyid == mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "table")
+        self._arm = slice(int(h.arm_qpos[0]), int(h.arm_qpos[0]) + 6)
+        assert np.array_equal(h.arm_qpos, np.arange(self._arm.start, self._arm.stop)), "arm qpos must be contiguous"
+        self._configure_filters()
+
+    def _configure_filters(self) -> None:
+        """Encode the policy in the model copy's contype/conaffinity bits and margins.
+
+        Every geom that takes part in collisions gets one class bit as its contype and, as its conaffinity,
+        the bits of the classes it must not touch. MuJoCo then only generates the contacts that count, so a
+        configuration is valid exactly when ``ncon == 0`` (no per-contact filtering in Python).
+        """
+        m, h, policy = self._m, self.robot.handles, self.policy
+        ARM, GRIP, TABLE, ENV, CUBE = 1, 2, 4, 8, 16
+        table = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "table")
+        cls = np.full(m.ngeom, ENV)
+        cls[np.isin(m.geom_bodyid, list(h.robot_bodies))] = ARM
+        cls[np.isin(m.geom_bodyid, list(h.gripper_bodies))] = GRIP
+        cls[m.geom_bodyid == table] = TABLE
+        cls[m.geom_bodyid == h.cube_body] = CUBE
+        pairs = {(ARM, ARM), (ARM, GRIP), (ARM, TABLE), (ARM, ENV), (ARM, CUBE), (GRIP, GRIP), (GRIP, TABLE),
+                 (GRIP, ENV)}
+        if not (policy.allow_gripper_cube or policy.cube_held):
+            pairs.add((GRIP, CUBE))
+        if policy.cube_held:
+            pairs.add((CUBE, ENV))
+            if not policy.allow_cube_table:
+                pairs.add((CUBE, TABLE))
+        affinity = {c: 0 for c in (ARM, GRIP, TABLE, ENV, CUBE)}
+        for a, b in pairs:
+            affinity[a] |= b
+            affinity[b] |= a
+        active = (m.geom_contype | m.geom_conaffinity) != 0  # visual geoms stay out
+        m.geom_contype[active] = cls[active]
+        m.geom_conaffinity[active] = [affinity[c] for c in cls[active]]
+        for b in range(m.nbody):  # the broad phase filters body pairs by the OR of their geoms' bits
+            in_body = m.geom_bodyid == b
+            m.body_contype[b] = np.bitwise_or.reduce(m.geom_contype[in_body], initial=0)
+            m.body_conaffinity[b] = np.bitwise_or.reduce(m.geom_conaffinity[in_body], initial=0)
         # MuJoCo uses the larger margin of a pair: margins on the environment (and on the carried cube) keep
         # the robot clear of them, while robot self-collision is checked at actual contact (adjacent housings
         # of the UR5e sit closer than any useful margin).
-        env_geoms = ~robot_geoms & ~cube_geoms
-        m.geom_margin[env_geoms] = self.policy.margin_m
-        if self.policy.cube_held:
-            m.geom_margin[cube_geoms] = self.policy.margin_m
-        # allowed[g1, g2]: contacts between these geoms are not collisions
-        allowed = np.zeros((m.ngeom, m.ngeom), dtype=bool)
-        if self.policy.allow_gripper_cube or self.policy.cube_held:
-            allowed[np.ix_(gripper_geoms, cube_geoms)] = True
-        if self.policy.allow_cube_table:
-            allowed[np.ix_(cube_geoms, table_geoms)] = True
-        if not self.policy.cube_held:
-            # a cube left on the table may touch only the table; its other contacts are not the arm's concern
-            allowed[np.ix_(cube_geoms, ~robot_geoms)] = True
-        self._allowed = allowed | allowed.T
+        m.geom_margin[:] = 0.0
+        m.geom_margin[(cls == TABLE) | (cls == ENV)] = policy.margin_m
+        if policy.cube_held:
+            m.geom_margin[cls == CUBE] = policy.margin_m
+        for b in range(m.nbody):  # the broad phase pads each body's bounds by its largest geom margin
+            in_body = m.geom_bodyid == b
+            m.body_margin[b] = m.geom_margin[in_body].max(initial=0.0)
 
     # ------------------------------------------------------------------ #
     def _place(self, q: np.ndarray) -> None:
         h = self.robot.handles
         d = self._d
-        d.qpos[h.arm_qpos] = q
+        d.qpos[self._arm] = q
         mujoco.mj_kinematics(self._m, d)
-        if self.policy.cube_held:
-            T_world_tcp = pin.SE3(d.site_xmat[h.tcp_site].reshape(3, 3), d.site_xpos[h.tcp_site])
-            T_world_cube = T_world_tcp * self._T_tcp_cube
-            d.qpos[h.cube_qpos:h.cube_qpos + 3] = T_world_cube.translation
-            d.qpos[h.cube_qpos + 3:h.cube_qpos + 7] = pin.Quaternion(T_world_cube.rotation).coeffs()[[3, 0, 1, 2]]
+        if self.policy.cube_held:  # the cube rides rigidly on the tcp: T_world_cube = T_world_tcp T_tcp_cube
+            R_world_tcp = d.site_xmat[h.tcp_site].reshape(3, 3)
+            d.qpos[self._cube_pos] = d.site_xpos[h.tcp_site] + R_world_tcp @ self._p_tcp_cube
+            mujoco.mju_mat2Quat(self._quat, (R_world_tcp @ self._R_tcp_cube).ravel())
+            d.qpos[self._cube_quat] = self._quat
             mujoco.mj_kinematics(self._m, d)
         mujoco.mj_collision(self._m, d)
         self.checks += 1
 
-    def _bad_contacts(self) -> np.ndarray:
-        n = self._d.ncon
-        if n == 0:
-            return np.zeros((0, 2), dtype=int)
-        g = self._d.contact.geom[:n]
-        return g[~self._allowed[g[:, 0], g[:, 1]]]
-
     def is_valid(self, q: np.ndarray) -> bool:
         """True if the arm configuration (6,) (rad) is collision free under the policy."""
         self._place(q)
-        return len(self._bad_contacts()) == 0
+        return self._d.ncon == 0
 
     def are_valid(self, qs: np.ndarray) -> np.ndarray:
         """Validity of a batch of configurations (N, 6) (rad) -> bool (N,)."""
@@ -140,15 +164,24 @@ class CollisionChecker:
         out = np.empty(len(qs), dtype=bool)
         for i, q in enumerate(qs):
             self._place(q)
-            out[i] = len(self._bad_contacts()) == 0
+            out[i] = self._d.ncon == 0
         return out
+
+    def all_valid(self, qs: np.ndarray) -> bool:
+        """Whether every configuration of a batch (N, 6) is valid; stops at the first collision."""
+        for q in np.atleast_2d(qs):
+            self._place(q)
+            if self._d.ncon:
+                return False
+        return True
 
     def colliding_pairs(self, q: np.ndarray) -> list[tuple[str, str]]:
         """Names of the geom pairs in collision at ``q`` (6,) (sorted, without repeats)."""
         self._place(q)
         m = self._m
+        geoms = self._d.contact.geom[: self._d.ncon]
         pairs = {tuple(sorted((m.geom(int(a)).name or f"geom{a}", m.geom(int(b)).name or f"geom{b}")))
-                 for a, b in self._bad_contacts()}
+                 for a, b in geoms}
         return sorted(pairs)  # type: ignore[arg-type]
 
     def require_valid(self, q: np.ndarray, what: str) -> None:

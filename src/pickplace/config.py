@@ -22,7 +22,9 @@ from pickplace.errors import ConfigError
 
 
 def check_finite(name: str, value: float) -> float:
-    """Return ``value`` as a float, or raise if it is not a finite number."""
+    """Return ``value`` as a float, or raise if it is not a finite number (strings are not numbers)."""
+    if isinstance(value, (str, bytes)):
+        raise ConfigError(name, value, "must be a finite number")
     try:
         v = float(value)
     except (TypeError, ValueError):

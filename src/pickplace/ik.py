@@ -190,7 +190,7 @@ def solve_ik(
     p = T_world_target.translation
     raise UnreachableTarget(
         name,
-        f"{best.status.value} after {best.attempts} attempts for tcp at "
+        f"{best.status.value} after {config.restarts + 1} attempts for tcp at "
         f"({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m",
         best.position_error_m,
         best.orientation_error_rad,

@@ -284,6 +284,7 @@ def build(scene: SceneConfig | None = None) -> Robot:
         raise ModelError(f"the MJCF scene does not compile: {exc}") from exc
     pmodel = _pinocchio_from_mjcf(robot_xml)
     _place_site_frames(pmodel, m)
+    _copy_inertias(pmodel, m)
     handles = Handles.resolve(m)
 
     expected = ("universe", *ARM_JOINTS, *FINGER_JOINTS)
@@ -328,6 +329,27 @@ def _place_site_frames(pmodel: pin.Model, m: mujoco.MjModel) -> None:
         frame.placement = body_frame.placement * local
         frame.parentJoint = body_frame.parentJoint
         pmodel.frames[fid] = frame
+
+
+def _copy_inertias(pmodel: pin.Model, m: mujoco.MjModel) -> None:
+    """Set each Pinocchio joint's inertia from MuJoCo's compiled bodies, at full precision.
+
+    ``MjSpec.to_xml`` writes 6 significant digits, so the XML Pinocchio parses rounds UR's 7-digit inertias
+    (e.g. 0.3338809 -> 0.333881 kg m^2). Each Pinocchio joint carries its body plus every body welded to it
+    (``tool0`` and ``gripper_base`` ride on wrist 3); their inertias are summed in the joint's frame.
+    """
+    d = mujoco.MjData(m)
+    mujoco.mj_kinematics(m, d)
+    for j in range(1, pmodel.njoints):
+        jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, pmodel.names[j])
+        body = int(m.jnt_bodyid[jid])
+        X_world_body = pin.SE3(d.xmat[body].reshape(3, 3).copy(), d.xpos[body].copy())
+        total = pin.Inertia.Zero()
+        for b in np.flatnonzero(m.body_weldid == body):
+            X_world_inertial = pin.SE3(d.ximat[b].reshape(3, 3).copy(), d.xipos[b].copy())
+            local = pin.Inertia(float(m.body_mass[b]), np.zeros(3), np.diag(m.body_inertia[b]))
+            total += X_world_body.actInv(X_world_inertial).act(local)
+        pmodel.inertias[j] = total
 
 
 def _pinocchio_from_mjcf(xml: str) -> pin.Model:

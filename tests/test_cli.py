@@ -1,0 +1,80 @@
+"""Tests of the command line: ``pickplace inspect --json``, ``--export-xml`` and ``--version``."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import mujoco
+import pytest
+
+from pickplace import __version__, model
+from pickplace.cli import main
+
+
+def test_inspect_json(capsys) -> None:
+    """``pickplace inspect --json`` in-process (it runs the IK and the hold margin), stdout parsed as JSON."""
+    code = main(["inspect", "--json"])
+    out = capsys.readouterr().out
+    assert code == 0
+    data = json.loads(out)
+    assert set(data) >= {"version", "model", "gripper", "ik", "hold"}
+    assert data["version"] == __version__
+    _check_ik(data)
+    _check_hold(data)
+    _check_gripper_and_model(data)
+
+
+def _check_ik(inspect_json: dict) -> None:
+    ik = inspect_json["ik"]
+    assert [r["name"] for r in ik] == ["pregrasp", "grasp", "preplace", "place"]
+    for r in ik:
+        assert r["position_error_m"] < 1e-4, r["name"]
+        assert r["orientation_error_rad"] < 1e-4, r["name"]
+        assert len(r["q_rad"]) == 6
+
+
+def _check_hold(inspect_json: dict) -> None:
+    hold = inspect_json["hold"]
+    print(f"\ninspect hold: slip {hold['slip_m'] * 1e3:.4f} mm, grip {hold['grip_force_n']:.2f} N per pad, "
+          f"peak {hold['peak_acceleration_m_s2']:.2f} m/s^2, safety factor {hold['safety_factor']}, trials "
+          + ", ".join(f"{t['cube_mass_kg']:.3g} kg {'held' if t['held'] else 'LOST'}" for t in hold["trials"]))
+    assert hold["held"] is True
+    assert hold["slip_m"] < 0.001
+    assert hold["safety_factor"] >= 3
+    assert hold["peak_acceleration_m_s2"] >= 3.0
+    assert hold["trials"][0]["cube_mass_kg"] == pytest.approx(0.150, abs=1e-12)
+
+
+def _check_gripper_and_model(inspect_json: dict) -> None:
+    g = inspect_json["gripper"]
+    assert "closed_inner_face_y_m" in g
+    assert "open_width_m" in g
+    assert g["closed_inner_face_y_m"] < g["cube_half_width_m"]
+    assert g["open_width_m"] > 2 * g["cube_half_width_m"] + 0.010
+    mdl = inspect_json["model"]
+    assert mdl["timestep_s"] == pytest.approx(0.001, abs=1e-15)
+    assert [j["name"] for j in mdl["joints"]] == list(model.ARM_JOINTS)
+    assert [j["torque_limit_nm"] for j in mdl["joints"]] == [150.0, 150.0, 150.0, 28.0, 28.0, 28.0]
+    assert mdl["pinocchio_joints"] == [*model.ARM_JOINTS, "left_finger_joint", "right_finger_joint"]
+
+
+def test_export_xml_compiles(tmp_path, capsys) -> None:
+    path = tmp_path / "scene.xml"
+    assert main(["inspect", "--export-xml", str(path)]) == 0
+    assert "wrote" in capsys.readouterr().out
+    assert path.exists()
+    m = mujoco.MjModel.from_xml_path(str(path))
+    reference = model.build().mj
+    assert m.nq == reference.nq
+    assert m.nv == reference.nv
+    assert m.nu == reference.nu
+    assert m.nbody == reference.nbody
+
+
+def test_version_subprocess() -> None:
+    proc = subprocess.run([sys.executable, "-m", "pickplace", "--version"], capture_output=True, text=True,
+                          timeout=60, check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == f"pickplace {__version__}"

@@ -1,0 +1,136 @@
+"""Tests of pickplace.collision: configuration validity on MuJoCo's collision detection."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from pickplace import model
+from pickplace.collision import CollisionChecker, CollisionPolicy
+from pickplace.configurations import GraspConfigurations, solve_grasp_configurations
+from pickplace.errors import CollisionError, ConfigError
+from pickplace.ik import solve_ik
+from pickplace.targets import T_tcp_cube, top_down
+
+#: Depth of the finger tips below the tcp (m): pads and finger boxes end 10 mm past the tcp (gripper.xml).
+TIP_BELOW_TCP_M = 0.010
+
+
+@pytest.fixture(scope="module")
+def robot() -> model.Robot:
+    return model.build()
+
+
+@pytest.fixture(scope="module")
+def configs(robot: model.Robot) -> GraspConfigurations:
+    return solve_grasp_configurations(robot)
+
+
+def _tcp_at(robot: model.Robot, xyz: tuple[float, float, float], q0: np.ndarray | None = None) -> np.ndarray:
+    """Arm configuration putting the tcp, pointing down, at ``xyz`` (IK without any collision check)."""
+    r = solve_ik(robot, pin.SE3(top_down(0.0), np.array(xyz)), robot.home_q if q0 is None else q0, "probe")
+    assert r.success
+    return r.q
+
+
+def _clearance_to(robot: model.Robot, q: np.ndarray, geom_name: str) -> float:
+    """Smallest signed distance (m) from any colliding robot geom to a geom, measured by mj_geomDistance."""
+    m, h = robot.mj, robot.handles
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, 0)
+    d.qpos[h.arm_qpos] = q
+    mujoco.mj_kinematics(m, d)
+    target = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, geom_name)
+    fromto = np.zeros(6)
+    robot_geoms = [g for g in range(m.ngeom)
+                   if m.geom_bodyid[g] in h.robot_bodies and (m.geom_contype[g] or m.geom_conaffinity[g])]
+    return min(mujoco.mj_geomDistance(m, d, g, target, 0.5, fromto) for g in robot_geoms)
+
+
+def test_home_is_valid(robot: model.Robot) -> None:
+    for policy in (CollisionPolicy(), CollisionPolicy(margin_m=0.0), CollisionPolicy(margin_m=0.05)):
+        checker = CollisionChecker(robot, policy)
+        assert checker.is_valid(robot.home_q), policy
+        assert checker.colliding_pairs(robot.home_q) == []
+        checker.require_valid(robot.home_q, "home")  # does not raise
+
+
+def test_tcp_in_the_table_is_invalid(robot: model.Robot) -> None:
+    z = robot.scene.table_height_m - 0.05
+    q = _tcp_at(robot, (0.45, 0.0, z))
+    checker = CollisionChecker(robot, CollisionPolicy(margin_m=0.0))
+    pairs = checker.colliding_pairs(q)
+    print(f"\ntcp 5 cm into the table: {pairs}, clearance {_clearance_to(robot, q, 'table_top') * 1e3:.1f} mm")
+    assert not checker.is_valid(q)
+    assert pairs
+    assert all("table_top" in pair for pair in pairs)
+    assert ("left_pad", "table_top") in pairs
+    assert ("right_pad", "table_top") in pairs
+    with pytest.raises(CollisionError, match=r"tcp in table is in collision: .*left_pad <-> table_top") as info:
+        checker.require_valid(q, "tcp in table")
+    assert info.value.pairs == pairs
+
+
+def test_is_valid_and_are_valid_agree(robot: model.Robot) -> None:
+    checker = CollisionChecker(robot, CollisionPolicy(margin_m=0.0))
+    rng = np.random.default_rng(2024)
+    qs = robot.home_q + rng.normal(0.0, 1.0, (200, 6))
+    batch = checker.are_valid(qs)
+    single = np.array([checker.is_valid(q) for q in qs])
+    pairs_empty = np.array([checker.colliding_pairs(q) == [] for q in qs])
+    print(f"\n{batch.sum()} of {len(qs)} random configurations valid")
+    assert batch.dtype == bool
+    assert batch.shape == (200,)
+    np.testing.assert_array_equal(batch, single)
+    np.testing.assert_array_equal(batch, pairs_empty)
+    assert 0 < batch.sum() < len(qs)  # both outcomes are exercised
+    # a single configuration as a batch
+    assert checker.are_valid(qs[0]).tolist() == [single[0]]
+
+
+def test_margin(robot: model.Robot) -> None:
+    gap = 0.004
+    z = robot.scene.table_height_m + TIP_BELOW_TCP_M + gap
+    q = _tcp_at(robot, (0.45, 0.0, z))
+    clearance = _clearance_to(robot, q, "table_top")
+    print(f"\nfinger tips {clearance * 1e3:.3f} mm above the table")
+    assert 0.0 < clearance < 0.005
+    assert clearance == pytest.approx(gap, abs=2e-4)  # the IK tolerance is 1e-4
+    tight = CollisionChecker(robot, CollisionPolicy(margin_m=0.0))
+    wide = CollisionChecker(robot, CollisionPolicy(margin_m=0.01))
+    assert tight.is_valid(q)
+    assert not wide.is_valid(q)
+    assert all("table_top" in pair for pair in wide.colliding_pairs(q))
+    # the margin is edited on a private copy: the simulation's model is untouched
+    assert np.all(robot.mj.geom_margin == 0.0)
+
+
+def test_held_cube_pushed_into_the_table(robot: model.Robot, configs: GraspConfigurations) -> None:
+    rel = T_tcp_cube(configs.targets, robot.scene.cube_yaw_rad)
+    policy = CollisionPolicy(margin_m=0.0, cube_held=True, allow_cube_table=False, finger_m=configs.held_finger_m)
+    checker = CollisionChecker(robot, policy, T_tcp_cube=rel)
+    # at the place target the cube hangs 1 mm above the table: valid
+    assert checker.colliding_pairs(configs.place.q) == []
+    # lowered by 5 mm, the cube goes 4 mm into the table (the finger tips stay 6 mm above it)
+    place = configs.targets.place
+    lowered = pin.SE3(place.rotation, place.translation - np.array([0.0, 0.0, 0.005]))
+    q = solve_ik(robot, lowered, configs.place.q, "lowered place").q
+    pairs = checker.colliding_pairs(q)
+    print(f"\nheld cube 4 mm into the table: {pairs}")
+    assert not checker.is_valid(q)
+    assert pairs == [("cube", "table_top")]
+    with pytest.raises(CollisionError, match=r"lowered place is in collision: cube <-> table_top"):
+        checker.require_valid(q, "lowered place")
+    # the same contact is allowed while setting the cube down
+    placing = CollisionChecker(robot, CollisionPolicy(margin_m=0.0, cube_held=True, allow_cube_table=True,
+                                                      finger_m=configs.held_finger_m), T_tcp_cube=rel)
+    assert placing.is_valid(q)
+
+
+def test_policy_validation() -> None:
+    with pytest.raises(ConfigError, match=r"^collision\.margin_m = -0\.01 is invalid"):
+        CollisionPolicy(margin_m=-0.01)
+    with pytest.raises(ConfigError, match=r"^collision\.finger_m = 0\.05 is invalid"):
+        CollisionPolicy(finger_m=0.05)

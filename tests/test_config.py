@@ -1,0 +1,123 @@
+"""Tests of pickplace.config: SceneConfig defaults and the ConfigError messages of bad values."""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+import pytest
+
+from pickplace.config import MAX_CUBE_SIZE_M, MIN_CUBE_SIZE_M, SceneConfig
+from pickplace.errors import ConfigError, PickPlaceError
+
+
+def test_defaults_are_valid() -> None:
+    s = SceneConfig()
+    assert s.cube_size_m == 0.040
+    assert s.cube_mass_kg == 0.150
+    assert s.cube_friction == 1.0
+    assert s.cube_start_xy_m == (0.35, 0.20)
+    assert s.goal_xy_m == (0.35, -0.20)
+    assert s.table_height_m == 0.315
+    assert s.obstacle is False
+    assert s.timestep_s == 0.001
+    assert s.cube_start_z_m == pytest.approx(0.335, abs=1e-12)
+    np.testing.assert_allclose(s.cube_start_pos_m, [0.35, 0.20, 0.335], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(s.goal_pos_m, [0.35, -0.20, 0.335], rtol=0, atol=1e-12)
+    # validated values are stored as floats / tuples of floats
+    assert isinstance(SceneConfig(cube_mass_kg=1).cube_mass_kg, float)
+    assert SceneConfig(cube_start_xy_m=np.array([0.4, 0.1])).cube_start_xy_m == (0.4, 0.1)
+
+
+def test_config_is_frozen() -> None:
+    s = SceneConfig()
+    with pytest.raises(AttributeError):
+        s.cube_mass_kg = 1.0  # type: ignore[misc]
+
+
+def _message(field: str, value: object) -> str:
+    """The start of a ConfigError message: ``<field> = <repr(value)> is invalid: ``, as a regex."""
+    return re.escape(f"{field} = {value!r} is invalid: ")
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field", "value", "allowed"),
+    [
+        ({"cube_mass_kg": -0.1}, "scene.cube_mass_kg", -0.1, "must be > 0 and <= 5 kg"),
+        ({"cube_mass_kg": 0.0}, "scene.cube_mass_kg", 0.0, "must be > 0 and <= 5 kg"),
+        ({"cube_mass_kg": 6.0}, "scene.cube_mass_kg", 6.0, "must be > 0 and <= 5 kg"),
+        ({"cube_size_m": math.nan}, "scene.cube_size_m", math.nan, "must be a finite number"),
+        ({"cube_size_m": 0.2}, "scene.cube_size_m", 0.2,
+         f"must be >= {MIN_CUBE_SIZE_M:g} and <= {MAX_CUBE_SIZE_M:g} m"),
+        ({"cube_friction": math.inf}, "scene.cube_friction", math.inf, "must be a finite number"),
+        ({"cube_friction": -math.inf}, "scene.cube_friction", -math.inf, "must be a finite number"),
+        ({"cube_friction": 0.0}, "scene.cube_friction", 0.0, "must be > 0 and <= 5"),
+        ({"cube_mass_kg": "heavy"}, "scene.cube_mass_kg", "heavy", "must be a finite number"),
+        ({"cube_mass_kg": None}, "scene.cube_mass_kg", None, "must be a finite number"),
+        ({"cube_mass_kg": True}, "scene.cube_mass_kg", True, "must be a finite number"),
+        ({"obstacle": "false"}, "scene.obstacle", "false", "must be true or false"),
+        ({"obstacle": 1}, "scene.obstacle", 1, "must be true or false"),
+        ({"timestep_s": 0.01}, "scene.timestep_s", 0.01, "must be >= 0.0001 and <= 0.005 s"),
+        ({"timestep_s": 1e-5}, "scene.timestep_s", 1e-5, "must be >= 0.0001 and <= 0.005 s"),
+        ({"timestep_s": 0.0}, "scene.timestep_s", 0.0, "must be >= 0.0001 and <= 0.005 s"),
+        ({"cube_start_xy_m": (0.35,)}, "scene.cube_start_xy_m", (0.35,), "must have exactly 2 elements"),
+        ({"goal_xy_m": (0.35, -0.2, 0.0)}, "scene.goal_xy_m", (0.35, -0.2, 0.0),
+         "must have exactly 2 elements"),
+        ({"cube_start_xy_m": 0.35}, "scene.cube_start_xy_m", 0.35, "must be a sequence of 2 numbers"),
+        ({"cube_start_xy_m": (0.35, "left")}, "scene.cube_start_xy_m[1]", "left", "must be a finite number"),
+        ({"cube_start_xy_m": (math.nan, 0.2)}, "scene.cube_start_xy_m[0]", math.nan,
+         "must be a finite number"),
+        ({"cube_yaw_rad": 7.0}, "scene.cube_yaw_rad", 7.0, "must be >="),
+        ({"table_height_m": 0.9}, "scene.table_height_m", 0.9, "must be >= 0.05 and <= 0.8 m"),
+        ({"table_size_xy_m": (0.05, 1.0)}, "scene.table_size_xy_m[0]", 0.05, "must be >= 0.1 and <= 3 m"),
+    ],
+)
+def test_bad_values_raise_config_error(kwargs: dict, field: str, value: object, allowed: str) -> None:
+    with pytest.raises(ConfigError, match=_message(field, value) + re.escape(allowed)) as info:
+        SceneConfig(**kwargs)
+    err = info.value
+    assert err.field == field
+    assert err.allowed.startswith(allowed)
+    if isinstance(value, float) and math.isnan(value):
+        assert math.isnan(err.value)
+    else:
+        assert err.value == value
+    # one type to catch, and a ValueError for callers that do not know pickplace
+    assert isinstance(err, PickPlaceError)
+    assert isinstance(err, ValueError)
+
+
+@pytest.mark.parametrize("field", ["cube_start_xy_m", "goal_xy_m"])
+@pytest.mark.parametrize(
+    ("xy", "axis"),
+    [((0.10, 0.0), "x"), ((0.85, 0.0), "x"), ((0.35, 0.55), "y"), ((0.35, -0.49), "y")],
+)
+def test_cube_off_the_table(field: str, xy: tuple[float, float], axis: str) -> None:
+    # default table: x in [0.20, 0.80], y in [-0.50, 0.50]; a 40 mm cube's footprint radius is 28.3 mm
+    with pytest.raises(ConfigError, match=_message(f"scene.{field}", xy)) as info:
+        SceneConfig(**{field: xy})
+    msg = str(info.value)
+    assert "the cube must lie on the table" in msg
+    r = 0.040 * math.sqrt(0.5)
+    lo, hi = {"x": (0.20 + r, 0.80 - r), "y": (-0.50 + r, 0.50 - r)}[axis]
+    assert f"{axis} must be in [{lo:.3f}, {hi:.3f}] m" in msg
+
+
+def test_cube_footprint_limit_is_the_half_diagonal() -> None:
+    r = 0.040 * math.sqrt(0.5)
+    SceneConfig(cube_start_xy_m=(0.20 + r + 1e-9, 0.0))  # just on the table
+    with pytest.raises(ConfigError, match=r"scene\.cube_start_xy_m"):
+        SceneConfig(cube_start_xy_m=(0.20 + r - 1e-6, 0.0))
+    # a bigger table accepts what the default one rejects
+    SceneConfig(goal_xy_m=(0.10, 0.0), table_size_xy_m=(1.0, 1.0))
+
+
+def test_valid_non_defaults_are_accepted() -> None:
+    s = SceneConfig(cube_size_m=MIN_CUBE_SIZE_M, cube_mass_kg=5.0, cube_friction=0.05, obstacle=True,
+                    timestep_s=0.005, cube_yaw_rad=-2 * math.pi)
+    assert s.cube_size_m == MIN_CUBE_SIZE_M
+    assert s.cube_mass_kg == 5.0
+    assert s.obstacle is True
+    assert s.timestep_s == 0.005
+    SceneConfig(cube_size_m=MAX_CUBE_SIZE_M, timestep_s=1e-4)

@@ -1,0 +1,135 @@
+"""Tests of pickplace.gripper: the measured geometry and the hold test (close, lift, carry, measure slip)."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from pickplace import model
+from pickplace.config import SceneConfig
+from pickplace.gripper import GripperGeometry, HoldResult, hold_test
+
+SLIP_M = 0.001
+
+
+@pytest.fixture(scope="module")
+def robot() -> model.Robot:
+    return model.build()
+
+
+@pytest.fixture(scope="module")
+def geometry(robot: model.Robot) -> GripperGeometry:
+    return GripperGeometry.measure(robot)
+
+
+def _pads_in_tcp(robot: model.Robot, q_arm: np.ndarray, finger: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Left and right pad centres in the tcp frame, and the pads' half thickness, at a finger opening."""
+    m, h = robot.mj, robot.handles
+    d = mujoco.MjData(m)
+    d.qpos[h.arm_qpos] = q_arm
+    d.qpos[h.finger_qpos] = finger
+    mujoco.mj_kinematics(m, d)
+    R = d.site_xmat[h.tcp_site].reshape(3, 3)
+    p = d.site_xpos[h.tcp_site]
+    left, right = (R.T @ (d.geom_xpos[g] - p) for g in h.pad_geoms)
+    half = float(m.geom_size[h.pad_geoms[0], 1])
+    assert m.geom_size[h.pad_geoms[1], 1] == half
+    return left, right, half
+
+
+def _print(label: str, r: HoldResult) -> None:
+    print(f"\nhold test {label}: held={r.held} slip {r.slip_m * 1e3:.4f} mm / {r.slip_rad:.2e} rad, grip force "
+          f"{r.grip_force_n:.2f} N per pad (min {r.min_grip_force_n:.2f}), peak acceleration "
+          f"{r.peak_acceleration_m_s2:.2f} m/s^2, load {r.load_n:.2f} N")
+
+
+# --------------------------------------------------------------------------- #
+# geometry
+# --------------------------------------------------------------------------- #
+
+
+def test_geometry_fits_the_cube(robot: model.Robot, geometry: GripperGeometry) -> None:
+    half = robot.scene.cube_size_m / 2
+    print(f"\ngripper: open inner face {geometry.open_inner_face_y_m * 1e3:.3f} mm, closed "
+          f"{geometry.closed_inner_face_y_m * 1e3:.3f} mm, open width {geometry.open_width_m * 1e3:.3f} mm, "
+          f"tcp {geometry.tcp_offset_m * 1e3:.3f} mm from tool0")
+    # the closed target lies past contact, so the actuator saturates on the cube
+    assert geometry.closed_inner_face_y_m < half
+    assert geometry.open_width_m > robot.scene.cube_size_m + 0.010
+    assert geometry.open_width_m == pytest.approx(2 * geometry.open_inner_face_y_m, abs=1e-12)
+    # gripper.xml: 84 mm open, 4 mm closed, 40 mm travel, 20 mm pads, tcp 0.100 m from tool0
+    assert geometry.open_width_m == pytest.approx(0.084, abs=1e-9)
+    assert geometry.closed_inner_face_y_m == pytest.approx(0.002, abs=1e-9)
+    assert geometry.travel_m == pytest.approx(0.040, abs=1e-12)
+    assert geometry.pad_half_height_m == pytest.approx(0.010, abs=1e-12)
+    assert geometry.tcp_offset_m == pytest.approx(0.100, abs=1e-9)
+    # the pads touch the cube at contact_travel_m
+    travel = geometry.contact_travel_m(robot.scene.cube_size_m)
+    left, right, t = _pads_in_tcp(robot, robot.home_q, travel)
+    assert left[1] - t == pytest.approx(half, abs=1e-9)
+    assert right[1] + t == pytest.approx(-half, abs=1e-9)
+
+
+@pytest.mark.parametrize("finger", [0.0, 0.005, 0.013, 0.022, 0.031, 0.040])
+def test_tcp_is_midway_between_the_pads(robot: model.Robot, finger: float) -> None:
+    rng = np.random.default_rng(int(finger * 1e3))
+    for q in (robot.home_q, rng.uniform(robot.arm_lower, robot.arm_upper)):
+        left, right, t = _pads_in_tcp(robot, q, finger)
+        left_face, right_face = left[1] - t, right[1] + t
+        assert left_face > 0 > right_face
+        assert abs(left_face + right_face) <= 1e-9  # symmetric about the tcp
+        assert left_face == pytest.approx(0.042 - finger, abs=1e-9)
+        np.testing.assert_allclose((left + right) / 2, 0.0, rtol=0, atol=1e-9)  # pad centres about the tcp
+        np.testing.assert_allclose(left[[0, 2]], 0.0, rtol=0, atol=1e-9)
+
+
+# --------------------------------------------------------------------------- #
+# hold test
+# --------------------------------------------------------------------------- #
+
+
+def test_hold_default_scene(robot: model.Robot) -> None:
+    r = hold_test()
+    _print("default cube (0.15 kg, mu 1.0, 40 mm)", r)
+    m, h = robot.mj, robot.handles
+    assert m.actuator_forcelimited[h.gripper_actuator]
+    force_limit = float(m.actuator_forcerange[h.gripper_actuator, 1])
+    assert force_limit == pytest.approx(40.0, abs=1e-12)
+    # the actuator drives the left finger; the right one follows through the joint equality, so its force
+    # is shared by the two pads: force_limit / 2 on each
+    per_pad = force_limit / 2
+    assert r.held
+    assert r.slip_m < SLIP_M
+    assert r.grip_force_n == pytest.approx(per_pad, rel=0.10)
+    assert r.min_grip_force_n == pytest.approx(per_pad, rel=0.10)
+    assert r.peak_acceleration_m_s2 >= 3.0
+    assert r.cube_mass_kg == pytest.approx(0.150, abs=1e-12)
+    assert r.load_n == pytest.approx(0.150 * (9.81 + r.peak_acceleration_m_s2), rel=1e-12)
+
+
+def test_hold_three_times_heavier_cube() -> None:
+    r = hold_test(SceneConfig(cube_mass_kg=0.45))
+    _print("0.45 kg cube", r)
+    assert r.held
+    assert r.slip_m < SLIP_M
+    assert r.peak_acceleration_m_s2 >= 3.0
+
+
+@pytest.mark.parametrize(
+    ("friction", "size"),
+    [(0.6, 0.040), (1.0, 0.030), (1.0, 0.050), (0.6, 0.030), (0.6, 0.050)],
+)
+def test_hold_other_friction_and_sizes(friction: float, size: float) -> None:
+    r = hold_test(SceneConfig(cube_friction=friction, cube_size_m=size))
+    _print(f"mu {friction}, {size * 1e3:.0f} mm", r)
+    assert r.held
+    assert r.slip_m < SLIP_M
+
+
+def test_hold_fails_when_it_should() -> None:
+    """Control case: mu 0.05 and 1.5 kg. Friction can carry at most 0.05 * 2 * 20 N = 2 N < 14.7 N of weight."""
+    r = hold_test(SceneConfig(cube_friction=0.05, cube_mass_kg=1.5))
+    _print("control: mu 0.05, 1.5 kg", r)
+    assert not r.held
+    assert r.slip_m > SLIP_M
