@@ -166,7 +166,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--export-xml", metavar="PATH", help="write the compiled scene MJCF to PATH")
     p.add_argument("--obstacle", action="store_true", help="put the wall between start and goal")
     p.set_defaults(func=_cmd_inspect)
+
+    p = sub.add_parser("bench", help="benchmarks (planning: pickplace RRT* vs OMPL)")
+    p.add_argument("name", choices=["planning"], help="which benchmark")
+    p.add_argument("bench_args", nargs=argparse.REMAINDER,
+                   help="options of the benchmark (e.g. --json, --quick, --queries N, --budget S, --no-ompl)")
+    p.set_defaults(func=_cmd_bench)
     return parser
+
+
+def _cmd_bench(args: argparse.Namespace, console: Console) -> int:
+    from pickplace.bench import planning
+
+    return int(planning.main(list(args.bench_args)))
 
 
 def main(argv: Sequence[str] | None = None) -> int:
