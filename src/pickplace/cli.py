@@ -98,8 +98,7 @@ def _cmd_inspect(args: argparse.Namespace, console: Console) -> int:
         from pickplace import model
 
         path = Path(args.export_xml)
-        with model._quiet_attach():
-            path.write_text(model.scene_spec(scene).to_xml())
+        path.write_text(model.scene_xml(scene))
         console.print(f"wrote the compiled scene MJCF to {path}")
         if not args.json:
             return 0

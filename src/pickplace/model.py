@@ -133,6 +133,12 @@ def scene_spec(scene: SceneConfig) -> mujoco.MjSpec:
     return spec
 
 
+def scene_xml(scene: SceneConfig) -> str:
+    """The scene as one self-contained MJCF string (e.g. to open in MuJoCo's own viewer)."""
+    with _quiet_attach():
+        return scene_spec(scene).to_xml()
+
+
 def obstacle_xy(scene: SceneConfig) -> tuple[float, float]:
     """Centre (x, y) of the obstacle wall: midway between the cube's start and the goal, plus the offset (m)."""
     a, b = np.asarray(scene.cube_start_xy_m), np.asarray(scene.goal_xy_m)
