@@ -123,10 +123,6 @@ class CollisionChecker:
         active = (m.geom_contype | m.geom_conaffinity) != 0  # visual geoms stay out
         m.geom_contype[active] = cls[active]
         m.geom_conaffinity[active] = [affinity[c] for c in cls[active]]
-        for b in range(m.nbody):  # the broad phase filters body pairs by the OR of their geoms' bits
-            in_body = m.geom_bodyid == b
-            m.body_contype[b] = np.bitwise_or.reduce(m.geom_contype[in_body], initial=0)
-            m.body_conaffinity[b] = np.bitwise_or.reduce(m.geom_conaffinity[in_body], initial=0)
         # MuJoCo uses the larger margin of a pair: margins on the environment (and on the carried cube) keep
         # the robot clear of them, while robot self-collision is checked at actual contact (adjacent housings
         # of the UR5e sit closer than any useful margin).
@@ -134,8 +130,12 @@ class CollisionChecker:
         m.geom_margin[(cls == TABLE) | (cls == ENV)] = policy.margin_m
         if policy.cube_held:
             m.geom_margin[cls == CUBE] = policy.margin_m
-        for b in range(m.nbody):  # the broad phase pads each body's bounds by its largest geom margin
+        # The broad phase works on bodies: it filters body pairs by the OR of their geoms' bits and pads each
+        # body's bounds by its largest geom margin, both computed at compile time, so they are redone here.
+        for b in range(m.nbody):
             in_body = m.geom_bodyid == b
+            m.body_contype[b] = np.bitwise_or.reduce(m.geom_contype[in_body], initial=0)
+            m.body_conaffinity[b] = np.bitwise_or.reduce(m.geom_conaffinity[in_body], initial=0)
             m.body_margin[b] = m.geom_margin[in_body].max(initial=0.0)
 
     # ------------------------------------------------------------------ #

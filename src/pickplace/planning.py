@@ -39,7 +39,7 @@ class ValidityChecker(Protocol):
         ...
 
     def are_valid(self, qs: np.ndarray) -> np.ndarray:
-        """Validity (M,) bool of a batch of configurations qs (M, n) (rad); cheaper than M single calls."""
+        """Validity (M,) bool of a batch of configurations qs (M, n) (rad)."""
         ...
 
     def all_valid(self, qs: np.ndarray) -> bool:
@@ -65,8 +65,9 @@ class PlannerConfig:
         edge_resolution_rad: Max-norm spacing (rad per joint) of the configurations checked along an
             edge during the search and shortcutting. Coarse is fast; the checker's safety margin covers
             the motion between checks, and the final path is verified at ``verify_resolution_rad``.
-        verify_resolution_rad: The returned path is re-checked at this spacing; if it fails, the search
-            and shortcutting are redone at this resolution (so every returned path passes it).
+        verify_resolution_rad: When edges are checked more coarsely than this, the returned path is
+            re-checked at this spacing; if it fails, the search and shortcutting are redone at this
+            resolution (so every returned path is checked at least this finely).
         time_budget_s: Wall-clock budget of the tree search (shortcutting not included) (s).
         seed: Seed of the ``numpy.random.Generator``.
         stop_at_first_solution: Return as soon as the goal joins the tree (then rely on shortcutting);
@@ -407,7 +408,9 @@ def plan(checker: ValidityChecker, q_start: np.ndarray, q_goal: np.ndarray, lowe
     t1 = time.perf_counter()
     short = shortcut(checker, raw, cfg, rng)
     t2 = time.perf_counter()
-    if not path_valid(checker, short, cfg.verify_resolution_rad):
+    # Edges checked at least as finely as the verification need no second pass.
+    if cfg.edge_resolution_rad > cfg.verify_resolution_rad and not path_valid(checker, short,
+                                                                               cfg.verify_resolution_rad):
         logger.info("plan: path fails the check at %.3g rad; redoing at that resolution", cfg.verify_resolution_rad)
         fine = replace(cfg, edge_resolution_rad=cfg.verify_resolution_rad)
         rng = np.random.default_rng(cfg.seed)
