@@ -9,23 +9,13 @@ import pytest
 
 from pickplace import model
 from pickplace.collision import CollisionChecker, CollisionPolicy
-from pickplace.configurations import GraspConfigurations, solve_grasp_configurations
+from pickplace.configurations import GraspConfigurations
 from pickplace.errors import CollisionError, ConfigError
 from pickplace.ik import solve_ik
 from pickplace.targets import T_tcp_cube, top_down
 
 #: Depth of the finger tips below the tcp (m): pads and finger boxes end 10 mm past the tcp (gripper.xml).
 TIP_BELOW_TCP_M = 0.010
-
-
-@pytest.fixture(scope="module")
-def robot() -> model.Robot:
-    return model.build()
-
-
-@pytest.fixture(scope="module")
-def configs(robot: model.Robot) -> GraspConfigurations:
-    return solve_grasp_configurations(robot)
 
 
 def _tcp_at(robot: model.Robot, xyz: tuple[float, float, float], q0: np.ndarray | None = None) -> np.ndarray:

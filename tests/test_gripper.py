@@ -14,11 +14,6 @@ SLIP_M = 0.001
 
 
 @pytest.fixture(scope="module")
-def robot() -> model.Robot:
-    return model.build()
-
-
-@pytest.fixture(scope="module")
 def geometry(robot: model.Robot) -> GripperGeometry:
     return GripperGeometry.measure(robot)
 

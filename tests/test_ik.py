@@ -17,19 +17,9 @@ from pickplace.configurations import GraspConfigurations, solve_grasp_configurat
 from pickplace.errors import ConfigError, UnreachableTarget
 from pickplace.ik import IKConfig, IKStatus, solve_ik
 from pickplace.kinematics import frame_pose, rot_z, wrap_to_pi
-from pickplace.targets import T_tcp_cube, top_down
+from pickplace.targets import top_down
 
 TOL = 1e-4
-
-
-@pytest.fixture(scope="module")
-def robot() -> model.Robot:
-    return model.build()
-
-
-@pytest.fixture(scope="module")
-def configs(robot: model.Robot) -> GraspConfigurations:
-    return solve_grasp_configurations(robot)
 
 
 def _rotation_angle(R_a: np.ndarray, R_b: np.ndarray) -> float:
@@ -52,9 +42,7 @@ def _mj_tcp(robot: model.Robot, q: np.ndarray, finger: float = 0.0) -> tuple[np.
 def _check_solved(robot: model.Robot, configs: GraspConfigurations, *, scene_label: str = "") -> None:
     """Every target converged, FK (Pinocchio and MuJoCo) lands on it, within limits, collision free."""
     free = CollisionChecker(robot, CollisionPolicy(margin_m=0.0))
-    rel = T_tcp_cube(configs.targets, robot.scene.cube_yaw_rad)
-    carry = CollisionChecker(robot, CollisionPolicy(margin_m=0.0, cube_held=True, allow_cube_table=False,
-                                                    finger_m=configs.held_finger_m), T_tcp_cube=rel)
+    carry = configs.carrying_checker(robot, margin_m=0.0)
     targets = dict(configs.targets.named())
     for r in configs.results():
         T = targets[r.name]

@@ -109,11 +109,6 @@ def rotation_angle(R_a: np.ndarray, R_b: np.ndarray) -> float:
 # --------------------------------------------------------------------------- #
 
 
-@pytest.fixture(scope="module")
-def robot() -> model.Robot:
-    return model.build()
-
-
 def _id(m: mujoco.MjModel, kind: mujoco.mjtObj, name: str) -> int:
     i = mujoco.mj_name2id(m, kind, name)
     assert i >= 0, f"no {kind.name} named {name!r}"

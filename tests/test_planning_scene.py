@@ -6,11 +6,9 @@ import numpy as np
 import pytest
 
 from pickplace import model, planning
-from pickplace.collision import CollisionChecker, CollisionPolicy
 from pickplace.config import SceneConfig
 from pickplace.configurations import solve_grasp_configurations
 from pickplace.errors import PlanningFailed
-from pickplace.targets import T_tcp_cube
 from pickplace.timing import TimingConfig, retime
 
 
@@ -19,12 +17,7 @@ def obstacle():
     robot = model.build(SceneConfig(obstacle=True))
     configs = solve_grasp_configurations(robot)
 
-    def checker(margin: float) -> CollisionChecker:
-        policy = CollisionPolicy(margin_m=margin, cube_held=True, allow_cube_table=False,
-                                 finger_m=configs.held_finger_m)
-        return CollisionChecker(robot, policy, T_tcp_cube=T_tcp_cube(configs.targets, 0.0))
-
-    return robot, configs, checker(0.01), checker(0.0)
+    return robot, configs, configs.carrying_checker(robot, 0.01), configs.carrying_checker(robot, 0.0)
 
 
 def test_carried_cube_must_go_around_the_wall(obstacle):

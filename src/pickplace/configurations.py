@@ -29,6 +29,7 @@ class GraspConfigurations:
         targets: The tcp poses they reach.
         pregrasp, grasp, preplace, place: The IK results (``.q`` is the arm configuration (6,) in rad).
         held_finger_m: Finger travel while the cube is held (m).
+        cube_yaw_rad: Yaw of the cube that is grasped (rad).
     """
 
     targets: GraspTargets
@@ -37,10 +38,38 @@ class GraspConfigurations:
     preplace: IKResult
     place: IKResult
     held_finger_m: float
+    cube_yaw_rad: float
 
     def results(self) -> list[IKResult]:
         """The four results in visiting order."""
         return [self.pregrasp, self.grasp, self.preplace, self.place]
+
+    def carrying_checker(self, robot: Robot, margin_m: float, allow_cube_table: bool = False) -> CollisionChecker:
+        """A checker for the arm carrying the cube as grasped here (see :func:`carrying_checker`)."""
+        return carrying_checker(robot, self.targets, self.cube_yaw_rad, self.held_finger_m, margin_m,
+                                allow_cube_table)
+
+
+def carrying_checker(
+    robot: Robot,
+    targets: GraspTargets,
+    cube_yaw_rad: float,
+    finger_m: float,
+    margin_m: float,
+    allow_cube_table: bool = False,
+) -> CollisionChecker:
+    """A collision checker for the arm carrying the cube, held at ``targets.grasp`` with the given yaw.
+
+    Args:
+        robot: The models.
+        targets: The tcp targets (the cube's pose in the tcp frame follows from the grasp).
+        cube_yaw_rad: Yaw of the grasped cube (rad).
+        finger_m: Finger travel while holding it (m).
+        margin_m: Safety margin to the table, floor and obstacles (m).
+        allow_cube_table: Whether the cube may touch the table (setting it down).
+    """
+    policy = CollisionPolicy(margin_m=margin_m, cube_held=True, allow_cube_table=allow_cube_table, finger_m=finger_m)
+    return CollisionChecker(robot, policy, T_tcp_cube=T_tcp_cube(targets, cube_yaw_rad))
 
 
 def solve_grasp_configurations(
@@ -61,11 +90,8 @@ def solve_grasp_configurations(
     targets = grasp_targets(scene, geom.pad_half_height_m, T_home, cube_pos_m, cube_yaw)
     held = geom.contact_travel_m(scene.cube_size_m)
     free = CollisionChecker(robot, CollisionPolicy(margin_m=0.0))
-    carrying = CollisionPolicy(margin_m=0.0, cube_held=True, allow_cube_table=False, finger_m=held)
-    placing = CollisionPolicy(margin_m=0.0, cube_held=True, allow_cube_table=True, finger_m=held)
-    rel = T_tcp_cube(targets, cube_yaw)
-    carry = CollisionChecker(robot, carrying, T_tcp_cube=rel)
-    place = CollisionChecker(robot, placing, T_tcp_cube=rel)
+    carry = carrying_checker(robot, targets, cube_yaw, held, margin_m=0.0)
+    place = carrying_checker(robot, targets, cube_yaw, held, margin_m=0.0, allow_cube_table=True)
 
     def solve(name: str, q0: np.ndarray, checker: CollisionChecker) -> IKResult:
         try:
@@ -77,7 +103,7 @@ def solve_grasp_configurations(
     grasp = solve("grasp", pre.q, free)
     preplace = solve("preplace", pre.q, carry)
     placed = solve("place", preplace.q, place)
-    return GraspConfigurations(targets, pre, grasp, preplace, placed, held)
+    return GraspConfigurations(targets, pre, grasp, preplace, placed, held, cube_yaw)
 
 
 def _with_collisions(exc: UnreachableTarget, checker: CollisionChecker, robot: Robot, target, q0,

@@ -34,7 +34,7 @@ import platform
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from importlib.metadata import PackageNotFoundError, version
 from types import ModuleType
 from typing import Any
@@ -47,7 +47,6 @@ from pickplace.config import SceneConfig
 from pickplace.configurations import solve_grasp_configurations
 from pickplace.errors import ConfigError, PlanningFailed, TimingFailed
 from pickplace.model import build
-from pickplace.targets import T_tcp_cube
 from pickplace.timing import TimingConfig, retime
 
 EDGE_RES_RAD = planning.PlannerConfig().edge_resolution_rad  # 0.01 rad, also the dense re-check spacing
@@ -85,16 +84,15 @@ def segments(scene_name: str, scene: SceneConfig) -> list[Segment]:
     """The two benchmarked segments of a scene, with their IK ends and checkers."""
     robot = build(scene)
     configs = solve_grasp_configurations(robot)
-    free = CollisionPolicy(margin_m=0.01)
-    held = CollisionPolicy(margin_m=0.01, cube_held=True, allow_cube_table=False, finger_m=configs.held_finger_m)
-    rel = T_tcp_cube(configs.targets, scene.cube_yaw_rad)
+    def free(margin_m: float) -> CollisionChecker:
+        return CollisionChecker(robot, CollisionPolicy(margin_m=margin_m))
+
     out = []
-    for name, policy, a, b in (("home->pregrasp", free, robot.home_q, configs.pregrasp.q),
-                               ("pregrasp->preplace", held, configs.pregrasp.q, configs.preplace.q)):
-        tcp_cube = rel if policy.cube_held else None
+    for name, make, a, b in (("home->pregrasp", free, robot.home_q, configs.pregrasp.q),
+                             ("pregrasp->preplace", lambda mg: configs.carrying_checker(robot, mg),
+                              configs.pregrasp.q, configs.preplace.q)):
         out.append(Segment(scene_name, name, np.asarray(a, float), np.asarray(b, float), robot.arm_lower,
-                           robot.arm_upper, CollisionChecker(robot, policy, T_tcp_cube=tcp_cube),
-                           CollisionChecker(robot, replace(policy, margin_m=0.0), T_tcp_cube=tcp_cube)))
+                           robot.arm_upper, make(0.01), make(0.0)))
     return out
 
 
