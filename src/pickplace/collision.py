@@ -6,11 +6,17 @@ closer than the margin, and every reported contact that the checker's policy doe
 collision. It covers the robot against the table, floor and obstacles, robot self-collision (MuJoCo's
 parent-child filter excludes adjacent links), the gripper against the cube (unless allowed), and, while the
 cube is carried, the cube moving rigidly with the tcp.
+
+The checker's model is the scene compiled with one extra body: a copy of the cube welded to the gripper
+(``held_cube``), switched off unless the cube is carried. Carrying is then pure forward kinematics: one
+``mj_kinematics`` and one ``mj_collision`` per configuration, with no pose arithmetic in Python, so a check
+with the cube in hand costs the same as one without.
 """
 
 from __future__ import annotations
 
 import copy
+import functools
 import logging
 from dataclasses import dataclass
 
@@ -18,9 +24,9 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from pickplace.config import check_range
+from pickplace.config import SceneConfig, check_range
 from pickplace.errors import CollisionError
-from pickplace.model import Robot
+from pickplace.model import Handles, Robot, quiet_attach, scene_spec
 
 log = logging.getLogger(__name__)
 
@@ -73,25 +79,33 @@ class CollisionChecker:
     ) -> None:
         self.robot = robot
         self.policy = policy or CollisionPolicy()
-        self._m = _copy_model(robot.mj)
+        self._m = copy.deepcopy(_checker_model(robot.scene))
         self._d = mujoco.MjData(self._m)
-        h = robot.handles
+        h = self._handles = Handles.resolve(self._m)
+        self._held_body = mujoco.mj_name2id(self._m, mujoco.mjtObj.mjOBJ_BODY, HELD_CUBE)
+        self._held_geom = mujoco.mj_name2id(self._m, mujoco.mjtObj.mjOBJ_GEOM, HELD_CUBE)
         if world_qpos is None:
             mujoco.mj_resetDataKeyframe(self._m, self._d, 0)
         else:
             self._d.qpos[:] = world_qpos
         self._d.qpos[h.finger_qpos] = self.policy.finger_m
-        T_tcp_cube = T_tcp_cube or pin.SE3.Identity()
-        self._p_tcp_cube = T_tcp_cube.translation.copy()
-        self._R_tcp_cube = T_tcp_cube.rotation.copy()
-        self._cube_pos = slice(h.cube_qpos, h.cube_qpos + 3)
-        self._cube_quat = slice(h.cube_qpos + 3, h.cube_qpos + 7)
-        self._quat = np.empty(4)
+        self._weld_held_cube(T_tcp_cube or pin.SE3.Identity())
         self.checks = 0
 
         self._arm = slice(int(h.arm_qpos[0]), int(h.arm_qpos[0]) + 6)
         assert np.array_equal(h.arm_qpos, np.arange(self._arm.start, self._arm.stop)), "arm qpos must be contiguous"
         self._configure_filters()
+
+    def _weld_held_cube(self, T_tcp_cube: pin.SE3) -> None:
+        """Pose the held cube's body in its parent (the body carrying the tcp site): T_tcp_site * T_tcp_cube."""
+        m, tcp = self._m, self._handles.tcp_site
+        R_parent_tcp = np.empty(9)
+        mujoco.mju_quat2Mat(R_parent_tcp, m.site_quat[tcp])
+        R_parent_tcp = R_parent_tcp.reshape(3, 3)
+        quat = np.empty(4)
+        mujoco.mju_mat2Quat(quat, (R_parent_tcp @ T_tcp_cube.rotation).ravel())
+        m.body_pos[self._held_body] = m.site_pos[tcp] + R_parent_tcp @ T_tcp_cube.translation
+        m.body_quat[self._held_body] = quat
 
     def _configure_filters(self) -> None:
         """Encode the policy in the model copy's contype/conaffinity bits and margins.
@@ -100,14 +114,16 @@ class CollisionChecker:
         the bits of the classes it must not touch. MuJoCo then only generates the contacts that count, so a
         configuration is valid exactly when ``ncon == 0`` (no per-contact filtering in Python).
         """
-        m, h, policy = self._m, self.robot.handles, self.policy
-        ARM, GRIP, TABLE, ENV, CUBE = 1, 2, 4, 8, 16
+        m, h, policy = self._m, self._handles, self.policy
+        OFF, ARM, GRIP, TABLE, ENV, CUBE = 0, 1, 2, 4, 8, 16
         table = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "table")
         cls = np.full(m.ngeom, ENV)
         cls[np.isin(m.geom_bodyid, list(h.robot_bodies))] = ARM
         cls[np.isin(m.geom_bodyid, list(h.gripper_bodies))] = GRIP
         cls[m.geom_bodyid == table] = TABLE
-        cls[m.geom_bodyid == h.cube_body] = CUBE
+        # Exactly one of the two cubes takes part: the one resting in the world, or the one in the gripper.
+        cls[m.geom_bodyid == h.cube_body] = OFF if policy.cube_held else CUBE
+        cls[m.geom_bodyid == self._held_body] = CUBE if policy.cube_held else OFF
         pairs = {(ARM, ARM), (ARM, GRIP), (ARM, TABLE), (ARM, ENV), (ARM, CUBE), (GRIP, GRIP), (GRIP, TABLE),
                  (GRIP, ENV)}
         if not (policy.allow_gripper_cube or policy.cube_held):
@@ -116,7 +132,7 @@ class CollisionChecker:
             pairs.add((CUBE, ENV))
             if not policy.allow_cube_table:
                 pairs.add((CUBE, TABLE))
-        affinity = {c: 0 for c in (ARM, GRIP, TABLE, ENV, CUBE)}
+        affinity = {c: 0 for c in (OFF, ARM, GRIP, TABLE, ENV, CUBE)}
         for a, b in pairs:
             affinity[a] |= b
             affinity[b] |= a
@@ -140,16 +156,9 @@ class CollisionChecker:
 
     # ------------------------------------------------------------------ #
     def _place(self, q: np.ndarray) -> None:
-        h = self.robot.handles
         d = self._d
         d.qpos[self._arm] = q
         mujoco.mj_kinematics(self._m, d)
-        if self.policy.cube_held:  # the cube rides rigidly on the tcp: T_world_cube = T_world_tcp T_tcp_cube
-            R_world_tcp = d.site_xmat[h.tcp_site].reshape(3, 3)
-            d.qpos[self._cube_pos] = d.site_xpos[h.tcp_site] + R_world_tcp @ self._p_tcp_cube
-            mujoco.mju_mat2Quat(self._quat, (R_world_tcp @ self._R_tcp_cube).ravel())
-            d.qpos[self._cube_quat] = self._quat
-            mujoco.mj_kinematics(self._m, d)
         mujoco.mj_collision(self._m, d)
         self.checks += 1
 
@@ -178,11 +187,15 @@ class CollisionChecker:
     def colliding_pairs(self, q: np.ndarray) -> list[tuple[str, str]]:
         """Names of the geom pairs in collision at ``q`` (6,) (sorted, without repeats)."""
         self._place(q)
-        m = self._m
         geoms = self._d.contact.geom[: self._d.ncon]
-        pairs = {tuple(sorted((m.geom(int(a)).name or f"geom{a}", m.geom(int(b)).name or f"geom{b}")))
-                 for a, b in geoms}
+        pairs = {tuple(sorted((self._geom_name(int(a)), self._geom_name(int(b))))) for a, b in geoms}
         return sorted(pairs)  # type: ignore[arg-type]
+
+    def _geom_name(self, g: int) -> str:
+        """A geom's name as the user knows it (the carried cube is reported as ``cube``)."""
+        if g == self._held_geom:
+            return "cube"
+        return self._m.geom(g).name or f"geom{g}"
 
     def require_valid(self, q: np.ndarray, what: str) -> None:
         """Raise :class:`CollisionError` naming the geoms if ``q`` is in collision."""
@@ -191,6 +204,22 @@ class CollisionChecker:
             raise CollisionError(what, pairs)
 
 
-def _copy_model(m: mujoco.MjModel) -> mujoco.MjModel:
-    """An independent copy of ``m`` (margins are edited on it)."""
-    return copy.deepcopy(m)
+HELD_CUBE = "held_cube"
+"""Name of the checker model's body (and geom) that is the cube while it is carried."""
+
+
+@functools.lru_cache(maxsize=16)
+def _checker_model(scene: SceneConfig) -> mujoco.MjModel:
+    """The scene compiled with a copy of the cube welded to the tcp's body (compiled once per scene).
+
+    Nothing else changes: the qpos layout is the simulation's, so world states carry over. Each checker
+    works on its own deep copy (it edits the collision bits, the margins and the held cube's pose).
+    """
+    spec = scene_spec(scene)
+    h = scene.cube_size_m / 2
+    tcp_body = spec.site("tcp").parent
+    held = tcp_body.add_body(name=HELD_CUBE)
+    held.add_geom(name=HELD_CUBE, type=mujoco.mjtGeom.mjGEOM_BOX, size=[h, h, h], mass=scene.cube_mass_kg,
+                  group=5)  # its collision bits are set per checker (_configure_filters)
+    with quiet_attach():
+        return spec.compile()

@@ -46,7 +46,7 @@ _EMPTY_PREFIX_WARNING = "Attaching a spec with an empty prefix"
 
 
 @contextlib.contextmanager
-def _quiet_attach() -> Iterator[None]:
+def quiet_attach() -> Iterator[None]:
     """Silence MuJoCo's warning about attaching with an empty prefix.
 
     We attach the gripper and the robot without name prefixes on purpose (the names in the XML files are
@@ -68,7 +68,7 @@ def robot_spec() -> mujoco.MjSpec:
     """The UR5e with the gripper mounted on ``tool0``: the one robot description (arm + gripper)."""
     spec = mujoco.MjSpec.from_file(str(ASSETS / "ur5e.xml"))
     gripper = mujoco.MjSpec.from_file(str(ASSETS / "gripper.xml"))
-    with _quiet_attach():
+    with quiet_attach():
         spec.body("tool0").add_frame().attach_body(gripper.body("gripper_base"), "", "")
     return spec
 
@@ -89,7 +89,7 @@ def scene_spec(scene: SceneConfig) -> mujoco.MjSpec:
     spec = mujoco.MjSpec.from_file(str(ASSETS / "scene.xml"))
     spec.option.timestep = scene.timestep_s
     robot = robot_spec()
-    with _quiet_attach():
+    with quiet_attach():
         spec.worldbody.add_frame().attach_body(robot.body("base"), "", "")
 
     # Table: a 40 mm top whose upper face is at table_height_m, on four legs.
@@ -135,7 +135,7 @@ def scene_spec(scene: SceneConfig) -> mujoco.MjSpec:
 
 def scene_xml(scene: SceneConfig) -> str:
     """The scene as one self-contained MJCF string (e.g. to open in MuJoCo's own viewer)."""
-    with _quiet_attach():
+    with quiet_attach():
         return scene_spec(scene).to_xml()
 
 
@@ -283,7 +283,7 @@ def build(scene: SceneConfig | None = None) -> Robot:
     scene = scene or SceneConfig()
     spec = scene_spec(scene)
     try:
-        with _quiet_attach():
+        with quiet_attach():
             m = spec.compile()
             robot_xml = robot_spec().to_xml()
     except ValueError as exc:

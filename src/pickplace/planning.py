@@ -73,6 +73,9 @@ class PlannerConfig:
         stop_at_first_solution: Return as soon as the goal joins the tree (then rely on shortcutting);
             if False keep sampling and rewiring until iterations or time budget run out (anytime).
         shortcut_iterations: Random shortcut attempts before the greedy waypoint-removal pass.
+        shortcut_min_gain_rad: A random shortcut is only checked when it would shorten the path by at
+            least this much (rad, L2). Checking a valid shortcut costs as much as its length in collision
+            checks, so gains below the edge resolution are not worth their checks.
         sample_in_box: Sample uniformly in the box spanned by start and goal, expanded by
             ``box_margin_rad`` on every joint and clipped to the joint bounds, instead of in the
             full bounds (which may be ±2π wide). A path that must leave this box will not be found.
@@ -92,7 +95,8 @@ class PlannerConfig:
     time_budget_s: float = 1.0
     seed: int = 0
     stop_at_first_solution: bool = True
-    shortcut_iterations: int = 100
+    shortcut_iterations: int = 50
+    shortcut_min_gain_rad: float = 0.01
     sample_in_box: bool = True
     box_margin_rad: float = 1.0
 
@@ -118,6 +122,7 @@ _FLOAT_FIELDS: dict[str, tuple[float, float, bool, str]] = {  # field: (lo, hi, 
     "verify_resolution_rad": (1e-4, 0.1, False, "rad"),
     "time_budget_s": (0.0, 3600.0, True, "s"),
     "box_margin_rad": (0.0, 10.0, False, "rad"),
+    "shortcut_min_gain_rad": (0.0, 1.0, False, "rad"),
 }
 
 
@@ -363,7 +368,7 @@ def shortcut(checker: ValidityChecker, path: np.ndarray, config: PlannerConfig,
             continue
         p1 = path[i] + (path[i + 1] - path[i]) * ((s1 - cum[i]) / (cum[i + 1] - cum[i]))
         p2 = path[j] + (path[j + 1] - path[j]) * ((s2 - cum[j]) / (cum[j + 1] - cum[j]))
-        if np.linalg.norm(p2 - p1) >= s2 - s1 - _EPS:
+        if np.linalg.norm(p2 - p1) > s2 - s1 - max(config.shortcut_min_gain_rad, _EPS):
             continue
         if (segment_valid(checker, p1, p2, res) and segment_valid(checker, path[i], p1, res)
                 and segment_valid(checker, p2, path[j + 1], res)):
