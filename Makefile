@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml | $(BIN)/python
 	touch $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/pickplace inspect
+	$(BIN)/pickplace run
 
 test: $(STAMP)
 	$(BIN)/python -m pytest

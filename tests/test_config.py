@@ -96,7 +96,7 @@ def test_bad_values_raise_config_error(kwargs: dict, field: str, value: object, 
 def test_cube_off_the_table(field: str, xy: tuple[float, float], axis: str) -> None:
     # default table: x in [0.20, 0.80], y in [-0.50, 0.50]; a 40 mm cube's footprint radius is 28.3 mm
     with pytest.raises(ConfigError, match=_message(f"scene.{field}", xy)) as info:
-        SceneConfig(**{field: xy})
+        SceneConfig(**{field: xy}).check_goal_on_table()  # the start is checked on construction
     msg = str(info.value)
     assert "the cube must lie on the table" in msg
     r = 0.040 * math.sqrt(0.5)
@@ -110,7 +110,7 @@ def test_cube_footprint_limit_is_the_half_diagonal() -> None:
     with pytest.raises(ConfigError, match=r"scene\.cube_start_xy_m"):
         SceneConfig(cube_start_xy_m=(0.20 + r - 1e-6, 0.0))
     # a bigger table accepts what the default one rejects
-    SceneConfig(goal_xy_m=(0.10, 0.0), table_size_xy_m=(1.0, 1.0))
+    SceneConfig(goal_xy_m=(0.10, 0.0), table_size_xy_m=(1.0, 1.0)).check_goal_on_table()
 
 
 def test_valid_non_defaults_are_accepted() -> None:

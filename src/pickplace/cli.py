@@ -1,4 +1,4 @@
-"""The ``pickplace`` command line: ``inspect`` and ``bench``.
+"""The ``pickplace`` command line: ``run``, ``inspect`` and ``bench``.
 
 The library logs and never prints; this module prints (rich tables) and turns every
 :class:`~pickplace.errors.PickPlaceError` into one clear line on stderr and a non-zero exit code.
@@ -12,6 +12,7 @@ import logging
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rich.console import Console
 from rich.table import Table
@@ -19,6 +20,9 @@ from rich.table import Table
 from pickplace import __version__
 from pickplace.config import SceneConfig
 from pickplace.errors import PickPlaceError
+
+if TYPE_CHECKING:
+    from pickplace.episode import EpisodeConfig, EpisodeResult
 
 EXIT_FAILURE = 1
 EXIT_USAGE = 2
@@ -149,8 +153,178 @@ def _cmd_inspect(args: argparse.Namespace, console: Console) -> int:
 
 
 # --------------------------------------------------------------------------- #
+# run
+# --------------------------------------------------------------------------- #
+
+#: The reference design's reported figures, shown next to ours.
+DESIGN_NOTE = {
+    "place_error": "1.4 mm RMS",
+    "cycle_time": "8.2 s",
+    "tracking": "< 5 mrad",
+    "grip_force": "≈ m·g",
+    "saturation": "none",
+}
+
+
+def episode_config_from_args(args: argparse.Namespace) -> EpisodeConfig:
+    """The episode config of ``pickplace run``/``eval``: ``--config`` TOML, then the scene flags on top."""
+    from pickplace.episode import EpisodeConfig
+
+    config = EpisodeConfig.from_toml(args.config) if args.config else EpisodeConfig()
+    changes: dict[str, object] = {}
+    if args.cube_start is not None:
+        changes["cube_start_xy_m"] = tuple(args.cube_start)
+    if args.cube_yaw is not None:
+        changes["cube_yaw_rad"] = args.cube_yaw
+    if args.goal is not None:
+        changes["goal_xy_m"] = tuple(args.goal)
+    if args.goal_yaw is not None:
+        changes["goal_yaw_rad"] = args.goal_yaw
+    if args.cube_mass is not None:
+        changes["cube_mass_kg"] = args.cube_mass
+    if args.cube_size is not None:
+        changes["cube_size_m"] = args.cube_size
+    if args.friction is not None:
+        changes["cube_friction"] = args.friction
+    if args.obstacle:
+        changes["obstacle"] = True
+    return config.with_scene(**changes) if changes else config
+
+
+def _mm(value: float | None) -> str:
+    return "—" if value is None or value != value else f"{value * 1e3:.3f} mm"
+
+
+def print_episode(result: EpisodeResult, console: Console) -> None:
+    """The phase timeline and the results table of one episode."""
+    t = Table(title=f"Phase timeline (seed {result.seed})")
+    for col in ("phase", "start (s)", "duration (s)", ""):
+        t.add_column(col, justify="left" if col in ("phase", "") else "right")
+    start = 0.0
+    for phase, dur in result.phase_durations_s.items():
+        failed = phase == result.failure_phase
+        t.add_row(phase, f"{start:.3f}", f"{dur:.3f}", "[red]FAILED[/]" if failed else "[green]ok[/]")
+        start += dur
+    console.print(t)
+
+    t = Table(title="Results")
+    t.add_column("measure")
+    t.add_column("design note", justify="right")
+    t.add_column("pickplace", justify="right")
+    sc = result.config.scene
+    mg = sc.cube_mass_kg * 9.81
+    t.add_row("success", "50/50 picks", "[green]yes[/]" if result.success else "[red]no[/]")
+    t.add_row("place error xy (at rest)", DESIGN_NOTE["place_error"], _mm(result.place_error_xy_m))
+    t.add_row("place error xy 1 s after release", "—", _mm(result.final_place_error_xy_m))
+    t.add_row("place error z / yaw", "—", f"{_mm(result.place_error_z_m)} / {result.place_error_yaw_rad:.2e} rad")
+    t.add_row("cycle time (simulated)", DESIGN_NOTE["cycle_time"], f"{result.cycle_time_s:.3f} s")
+    t.add_row("joint tracking error max / rms", DESIGN_NOTE["tracking"],
+              f"{result.tracking_error_max_rad * 1e3:.3f} / {result.tracking_error_rms_rad * 1e3:.3f} mrad")
+    t.add_row("grip: pad normal force during lift", "—", f"{result.lift_grip_force_n:.1f} N")
+    t.add_row("grip: load carried by the pads (m·g)", DESIGN_NOTE["grip_force"],
+              f"{result.lift_load_n:.2f} N ({mg:.2f} N)")
+    t.add_row("force closure (margin)", "—", f"{'yes' if result.force_closure else 'no'} ({result.grasp_margin:.3f})")
+    t.add_row("slip in the grip (max)", "—", _mm(result.slip_max_m))
+    t.add_row("torque saturation", DESIGN_NOTE["saturation"], f"{result.torque_saturation_events} steps")
+    t.add_row("IK residual (max)", "—",
+              f"{_mm(result.ik_position_error_m)} / {result.ik_orientation_error_rad:.1e} rad")
+    plan = ", ".join(f"{k} {v * 1e3:.1f} ms ({result.waypoints_raw[k]}→{result.waypoints_shortcut[k]} wp)"
+                     for k, v in result.plan_time_s.items())
+    t.add_row("planning (per segment)", "200–600 ms", plan or "—")
+    t.add_row("wall time / real-time factor", "—", f"{result.wall_time_s:.2f} s / {result.real_time_factor:.1f}×")
+    console.print(t)
+
+
+def _cmd_run(args: argparse.Namespace, console: Console) -> int:
+    from pickplace.episode import run_episode
+    from pickplace.machine import Phase
+
+    config = episode_config_from_args(args)
+    wants_media = bool(args.video or args.plots or args.viewer)
+    if args.viewer and not _has_display():
+        raise CliError("--viewer needs a display (none found: DISPLAY and WAYLAND_DISPLAY are unset); "
+                       "use --video PATH.mp4 to render offscreen instead")
+    result = run_episode(config, args.seed, record=wants_media)
+    moved = result.failure_phase != Phase.IDLE.value  # IDLE fails before the arm moves: one line is enough
+    if args.json:
+        print(json.dumps(result.to_dict(), indent=2))
+    elif moved:
+        print_episode(result, console)
+    if result.telemetry is not None:
+        from pickplace import report
+
+        if args.plots:
+            for path in report.save_plots(result.telemetry, Path(args.plots)):
+                console.print(f"wrote {path}", highlight=False) if not args.json else None
+        if args.video:
+            path = report.render_video(_robot_for(config), result.telemetry, Path(args.video))
+            console.print(f"wrote {path}", highlight=False) if not args.json else None
+        if args.viewer:
+            _replay_in_viewer(config, result)
+    if not result.success:
+        err = Console(stderr=True, soft_wrap=True)
+        where = f"episode failed in {result.failure_phase}" if moved else "nothing moved"
+        err.print(f"[bold red]error:[/] {result.failure_kind}: {where}: {result.failure_reason}", highlight=False)
+        return EXIT_FAILURE
+    return 0
+
+
+def _robot_for(config: EpisodeConfig) -> object:
+    from pickplace import model
+
+    return model.build(config.scene)
+
+
+def _has_display() -> bool:
+    import os
+
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")) or sys.platform in ("darwin", "win32")
+
+
+def _replay_in_viewer(config: EpisodeConfig, result: EpisodeResult) -> None:
+    """Replay the recorded episode in MuJoCo's passive viewer, in real time."""
+    import time
+
+    import mujoco
+    import mujoco.viewer
+
+    from pickplace import model
+
+    robot = model.build(config.scene)
+    d = robot.make_data()
+    tel = result.telemetry
+    assert tel is not None
+    with mujoco.viewer.launch_passive(robot.mj, d) as viewer:
+        t0 = time.perf_counter()
+        for t, qpos in zip(tel.frame_t_s, tel.frame_qpos, strict=True):
+            if not viewer.is_running():
+                break
+            d.qpos[:] = qpos
+            mujoco.mj_forward(robot.mj, d)
+            viewer.sync()
+            time.sleep(max(0.0, t - (time.perf_counter() - t0)))
+
+
+class CliError(PickPlaceError):
+    """A command-line request that cannot be carried out (e.g. ``--viewer`` without a display)."""
+
+
+# --------------------------------------------------------------------------- #
 # entry point
 # --------------------------------------------------------------------------- #
+
+
+def add_episode_options(p: argparse.ArgumentParser) -> None:
+    """The options that define an episode's config (shared by ``run`` and ``eval``)."""
+    p.add_argument("--config", metavar="FILE.toml", help="episode config ([scene], [planner], ... tables)")
+    p.add_argument("--cube-start", nargs=2, type=float, metavar=("X", "Y"), help="cube start (m)")
+    p.add_argument("--cube-yaw", type=float, metavar="RAD", help="cube yaw (rad)")
+    p.add_argument("--goal", nargs=2, type=float, metavar=("X", "Y"), help="goal of the cube's centre (m)")
+    p.add_argument("--goal-yaw", type=float, metavar="RAD", help="cube yaw at the goal (rad)")
+    p.add_argument("--cube-mass", type=float, metavar="KG", help="cube mass (kg)")
+    p.add_argument("--cube-size", type=float, metavar="M", help="cube edge length (m)")
+    p.add_argument("--friction", type=float, metavar="MU", help="cube friction coefficient")
+    p.add_argument("--obstacle", action="store_true", help="put a wall between start and goal")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -159,6 +333,15 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"pickplace {__version__}")
     parser.add_argument("-v", "--verbose", action="count", default=0, help="log more (-v info, -vv debug)")
     sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("run", help="one pick and place in simulation, with its timeline and measured results")
+    add_episode_options(p)
+    p.add_argument("--seed", type=int, default=0, help="episode seed (the planner's random stream); default 0")
+    p.add_argument("--json", action="store_true", help="print the EpisodeResult as one JSON object")
+    p.add_argument("--viewer", action="store_true", help="replay the episode in MuJoCo's viewer (needs a display)")
+    p.add_argument("--video", metavar="PATH.mp4", help="render the episode offscreen to a video (MUJOCO_GL=egl)")
+    p.add_argument("--plots", metavar="DIR", help="write joint tracking, tcp height, grip force and timeline PNGs")
+    p.set_defaults(func=_cmd_run)
 
     p = sub.add_parser("inspect", help="model summary, gripper geometry, IK of the targets, hold test")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -187,7 +370,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     level = (logging.WARNING, logging.INFO, logging.DEBUG)[min(args.verbose, 2)]
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
     console = Console()
-    err = Console(stderr=True)
+    err = Console(stderr=True, soft_wrap=True)
     try:
         return int(args.func(args, console))
     except PickPlaceError as exc:

@@ -8,13 +8,17 @@ turns a :class:`SceneConfig` into models.
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any, TypeVar
 
 import numpy as np
 
 from pickplace.errors import ConfigError
+
+T = TypeVar("T")
 
 # --------------------------------------------------------------------------- #
 # validation helpers (shared by every config)
@@ -178,6 +182,11 @@ class SceneConfig:
                                                          2, -0.5, 0.5, unit="m"))
         set_(self, "timestep_s", check_range("scene.timestep_s", self.timestep_s, 1e-4, 0.005, unit="s"))
         self._check_on_table("scene.cube_start_xy_m", self.cube_start_xy_m)
+        # The goal is checked by check_goal_on_table(), after its reachability: a goal far out of the
+        # arm's reach must be reported as unreachable, which only the kinematics can tell.
+
+    def check_goal_on_table(self) -> None:
+        """Raise :class:`ConfigError` unless the cube's footprint at the goal (any yaw) lies on the table."""
         self._check_on_table("scene.goal_xy_m", self.goal_xy_m)
 
     def _check_on_table(self, name: str, xy: tuple[float, float]) -> None:
@@ -208,6 +217,29 @@ class SceneConfig:
         return np.array([*self.goal_xy_m, self.cube_start_z_m])
 
 
+def from_mapping(cls: type[T], data: Mapping[str, Any], section: str, base: T | None = None) -> T:
+    """Build the frozen config dataclass ``cls`` from a mapping (e.g. one TOML table).
+
+    Lists become tuples; every value is then validated by the class itself.
+
+    Args:
+        cls: The config class.
+        data: Field name -> value.
+        section: Name used in errors (``"scene"`` gives ``scene.cube_mass_kg``).
+        base: Defaults to start from (default: ``cls()``).
+
+    Raises:
+        ConfigError: an unknown key (the allowed ones are listed) or an invalid value.
+    """
+    names = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]
+    for key, value in data.items():
+        if key not in names:
+            raise ConfigError(f"{section}.{key}", value, f"unknown key; allowed: {', '.join(names)}")
+    changes = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
+    start = base if base is not None else cls()
+    return dataclasses.replace(start, **changes)  # type: ignore[type-var]
+
+
 __all__ = [
     "MAX_CUBE_SIZE_M",
     "MIN_CUBE_SIZE_M",
@@ -216,4 +248,5 @@ __all__ = [
     "check_int",
     "check_range",
     "check_vector",
+    "from_mapping",
 ]

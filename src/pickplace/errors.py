@@ -84,3 +84,19 @@ class TimingFailed(PickPlaceError):
 
 class GraspFailed(PickPlaceError):
     """A grasp could not be established or was lost."""
+
+
+class ControlError(PickPlaceError):
+    """A controller could not finish its motion: timeout, tracking error beyond its bound, or divergence.
+
+    Attributes:
+        phase: What was running (e.g. ``"move_vertical"``).
+        reason: What went wrong, with the numbers.
+        record: The record of the motion up to the failure (a ``control`` record), or None.
+    """
+
+    def __init__(self, phase: str, reason: str, record: object | None = None) -> None:
+        self.phase = phase
+        self.reason = reason
+        self.record = record
+        super().__init__(f"{phase}: {reason}")

@@ -17,6 +17,7 @@ import numpy as np
 import pinocchio as pin
 
 from pickplace.config import SceneConfig, check_range
+from pickplace.grasp import Contact
 from pickplace.ik import IKConfig, dls_iterate, solve_ik
 from pickplace.kinematics import frame_pose, rotation_distance
 from pickplace.model import Robot, build
@@ -113,6 +114,31 @@ def pad_forces(robot: Robot, d: mujoco.MjData) -> np.ndarray:
                 mujoco.mj_contactForce(m, d, i, f)
                 out[k] += f[0]
     return out
+
+
+def pad_contacts(robot: Robot, d: mujoco.MjData) -> tuple[list[Contact], np.ndarray]:
+    """The pad-cube contacts as the simulation has them now, for the force-closure test.
+
+    Returns:
+        ``(contacts, force_on_cube)``: one :class:`~pickplace.grasp.Contact` per MuJoCo contact point
+        between a pad and the cube (world frame, normal pointing into the cube, the contact's own friction
+        coefficients), and the total force the pads exert on the cube (3,) in the world (N).
+    """
+    m, h = robot.mj, robot.handles
+    contacts: list[Contact] = []
+    total = np.zeros(3)
+    f = np.zeros(6)
+    for i in range(d.ncon):
+        c = d.contact[i]
+        if h.cube_geom not in (c.geom1, c.geom2) or not (c.geom1 in h.pad_geoms or c.geom2 in h.pad_geoms):
+            continue
+        frame = c.frame.reshape(3, 3)  # rows: normal (from geom1 to geom2), tangent 1, tangent 2
+        into_cube = frame[0] if c.geom2 == h.cube_geom else -frame[0]
+        mujoco.mj_contactForce(m, d, i, f)
+        force_on_geom2 = frame.T @ f[:3]
+        total += force_on_geom2 if c.geom2 == h.cube_geom else -force_on_geom2
+        contacts.append(Contact(c.pos.copy(), into_cube, float(c.friction[0]), float(c.friction[2])))
+    return contacts, total
 
 
 def in_contact(robot: Robot, d: mujoco.MjData, min_force_n: float = 0.5) -> bool:

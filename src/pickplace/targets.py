@@ -115,3 +115,40 @@ def T_tcp_cube(targets: GraspTargets, cube_yaw_rad: float) -> pin.SE3:
     """Pose of the cube in the tcp frame once it is grasped at ``targets.grasp``."""
     R = targets.grasp.rotation.T @ rot_z(cube_yaw_rad)
     return pin.SE3(R, np.array([0.0, 0.0, targets.tcp_above_cube_m]))
+
+
+def place_targets(
+    scene: SceneConfig,
+    T_world_tcp: pin.SE3,
+    T_world_cube: pin.SE3,
+    reference_yaw_rad: float,
+) -> tuple[pin.SE3, pin.SE3, float]:
+    """Preplace and place tcp poses that set the cube down at the goal *as it sits in the hand now*.
+
+    The grasp never centres the cube perfectly (the pads push it while they close), so the place is
+    computed from the measured hand-cube offset rather than the nominal one: the cube's horizontal offset
+    and yaw relative to the tcp and its depth below the tcp are kept, and the tcp is placed so the cube's
+    centre lands on the goal with the goal's yaw (modulo the cube's 90 degree symmetry).
+
+    Args:
+        scene: The scene (goal, table height, cube size).
+        T_world_tcp: Tcp pose now (while holding the cube).
+        T_world_cube: Cube pose now.
+        reference_yaw_rad: Tcp yaw to stay close to among the four equivalent ones (rad), e.g. the
+            nominal :attr:`GraspTargets.place_yaw_rad`.
+
+    Returns:
+        ``(preplace, place, place_yaw_rad)``: the two tcp poses and the tcp yaw at the place (rad).
+    """
+    tcp_yaw = yaw_of(T_world_tcp.rotation)
+    offset_world = T_world_cube.translation - T_world_tcp.translation
+    offset_tcp = rot_z(-tcp_yaw)[:2, :2] @ offset_world[:2]  # horizontal offset in the tcp's yaw frame
+    below = -offset_world[2]  # tcp height above the cube's centre
+    cube_in_hand_yaw = float(wrap_to_pi(yaw_of(T_world_cube.rotation) - tcp_yaw))
+    place_yaw = face_yaw(scene.goal_yaw_rad - cube_in_hand_yaw, reference_yaw_rad)
+    goal = scene.goal_pos_m
+    xy = goal[:2] - rot_z(place_yaw)[:2, :2] @ offset_tcp
+    z = goal[2] + below + PLACE_DROP_M
+    place = pin.SE3(top_down(place_yaw), np.array([xy[0], xy[1], z]))
+    preplace = pin.SE3(top_down(place_yaw), np.array([xy[0], xy[1], z + CLEARANCE_M]))
+    return preplace, place, place_yaw

@@ -1,0 +1,673 @@
+"""The pick-and-place state machine: phases, each with its controller, termination, success check and timeout.
+
+``IDLE → PLAN_APPROACH → EXEC_APPROACH → DESCEND → CLOSE → LIFT → PLAN_TRANSPORT → EXEC_TRANSPORT →
+DESCEND_PLACE → RELEASE → RETRACT → DONE`` (or ``FAILED``, with the phase and a specific reason).
+
+Manipulation fails quietly — a slipped grasp raises nothing by itself — so every phase checks its own
+outcome, and a monitor runs after *every* simulation step of every phase:
+
+* unexpected contacts: the arm or the gripper touching the table, the floor, an obstacle or itself; the
+  cube touching an obstacle or the floor, or the table while it is carried; the gripper touching the cube
+  while it approaches it. The failure names the geoms.
+* slip: from the end of CLOSE until RELEASE, the cube's position in the tcp frame is compared with the
+  one measured when the grip settled; moving more than ``MachineConfig.slip_tolerance_m`` fails the phase.
+
+Everything the machine measures is collected in a :class:`MachineOutcome`; :mod:`pickplace.episode` turns
+it into the user-facing :class:`~pickplace.episode.EpisodeResult`.
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+from pickplace import control, gripper
+from pickplace.collision import CollisionChecker, CollisionPolicy
+from pickplace.config import check_range
+from pickplace.configurations import GraspConfigurations, solve_grasp_configurations
+from pickplace.control import ControlConfig, Payload
+from pickplace.errors import ConfigError, GraspFailed, PickPlaceError
+from pickplace.grasp import analyze_grasp
+from pickplace.ik import IKConfig, solve_ik
+from pickplace.kinematics import wrap_to_pi, yaw_of
+from pickplace.model import Robot
+from pickplace.planning import PlannerConfig, plan
+from pickplace.targets import place_targets
+from pickplace.telemetry import TelemetryRecorder
+from pickplace.timing import TimingConfig, Trajectory, retime
+
+log = logging.getLogger(__name__)
+
+
+class Phase(enum.Enum):
+    """The phases of a pick and place, in order (FAILED is terminal)."""
+
+    IDLE = "IDLE"
+    PLAN_APPROACH = "PLAN_APPROACH"
+    EXEC_APPROACH = "EXEC_APPROACH"
+    DESCEND = "DESCEND"
+    CLOSE = "CLOSE"
+    LIFT = "LIFT"
+    PLAN_TRANSPORT = "PLAN_TRANSPORT"
+    EXEC_TRANSPORT = "EXEC_TRANSPORT"
+    DESCEND_PLACE = "DESCEND_PLACE"
+    RELEASE = "RELEASE"
+    RETRACT = "RETRACT"
+    DONE = "DONE"
+    FAILED = "FAILED"
+
+
+class PhaseFailed(PickPlaceError):
+    """A phase's own success check failed.
+
+    Attributes:
+        phase: The phase that failed.
+        reason: What was measured and what was required.
+    """
+
+    def __init__(self, phase: Phase, reason: str) -> None:
+        self.phase = phase
+        self.reason = reason
+        super().__init__(f"{phase.value}: {reason}")
+
+
+class UnexpectedContact(PickPlaceError):
+    """A contact that the running phase does not allow (the geoms are named).
+
+    Attributes:
+        pairs: The offending geom pairs.
+    """
+
+    def __init__(self, pairs: list[tuple[str, str]], t_s: float) -> None:
+        self.pairs = pairs
+        names = ", ".join(f"{a} <-> {b}" for a, b in pairs)
+        super().__init__(f"unexpected contact at t = {t_s:.3f} s: {names}")
+
+
+@dataclass(frozen=True)
+class MachineConfig:
+    """Tolerances, timeouts and motion choices of the state machine (SI units).
+
+    Attributes:
+        planning_margin_m: Clearance the planner keeps from the table, floor and obstacles (m).
+        close_timeout_s: Time allowed for the gripper to close and settle on the cube (s).
+        min_pad_force_n: Normal force each pad must press with for the grip to count (N).
+        finger_settle_speed_m_s: Fingers slower than this count as settled (m/s).
+        slip_tolerance_m: Largest allowed motion of the cube in the tcp frame while it is held (m).
+        release_timeout_s: Time allowed for the pads to open and clear the cube (s).
+        release_clearance_m: Gap between each pad and the cube needed before retracting (m).
+        cube_rest_speed_m_s: The released cube counts as resting below this speed (m/s).
+        place_tolerance_xy_m: Largest horizontal distance of the placed cube from the goal (m).
+        place_tolerance_z_m: Largest height error of the placed cube (m).
+        place_tolerance_yaw_rad: Largest yaw error of the placed cube (rad, modulo 90 degrees).
+        retract_height_m: Vertical retreat after the release, before returning home (m).
+        settle_s: Hold at the end of each trajectory before the next phase (s).
+        poll_s: Step of the loops that wait for the gripper (s).
+        stable_after_release_s: After DONE, the simulation continues until this long after the release, and
+            the cube's position then is reported (s).
+    """
+
+    planning_margin_m: float = 0.01
+    close_timeout_s: float = 1.0
+    min_pad_force_n: float = 2.0
+    finger_settle_speed_m_s: float = 2e-3
+    slip_tolerance_m: float = 0.003
+    release_timeout_s: float = 1.0
+    release_clearance_m: float = 0.002
+    cube_rest_speed_m_s: float = 0.002
+    place_tolerance_xy_m: float = 0.003
+    place_tolerance_z_m: float = 0.003
+    place_tolerance_yaw_rad: float = 0.05
+    retract_height_m: float = 0.06
+    settle_s: float = 0.05
+    poll_s: float = 0.01
+    stable_after_release_s: float = 1.0
+
+    def __post_init__(self) -> None:
+        limits = {
+            "planning_margin_m": (0.0, 0.1, "m"), "close_timeout_s": (0.01, 10.0, "s"),
+            "min_pad_force_n": (0.0, 100.0, "N"), "finger_settle_speed_m_s": (1e-5, 1.0, "m/s"),
+            "slip_tolerance_m": (1e-4, 0.05, "m"), "release_timeout_s": (0.01, 10.0, "s"),
+            "release_clearance_m": (0.0, 0.03, "m"), "cube_rest_speed_m_s": (1e-5, 1.0, "m/s"),
+            "place_tolerance_xy_m": (1e-4, 0.1, "m"),
+            "place_tolerance_z_m": (1e-4, 0.1, "m"), "place_tolerance_yaw_rad": (1e-4, math.pi / 4, "rad"),
+            "retract_height_m": (0.0, 0.5, "m"), "settle_s": (0.0, 5.0, "s"), "poll_s": (0.001, 0.1, "s"),
+            "stable_after_release_s": (0.0, 10.0, "s"),
+        }
+        for name, (lo, hi, unit) in limits.items():
+            object.__setattr__(self, name, check_range(f"machine.{name}", getattr(self, name), lo, hi, unit=unit))
+
+
+@dataclass(frozen=True)
+class SegmentPlan:
+    """How one joint-space segment was planned and timed.
+
+    Attributes:
+        name: ``"approach"``, ``"transport"`` or ``"return"``.
+        plan_time_s: Wall time of planning (search + shortcut) (s).
+        retime_time_s: Wall time of TOPP-RA (s).
+        waypoints_raw: Waypoints of the tree path.
+        waypoints_shortcut: Waypoints after shortcutting.
+        cost_rad: Joint-space length after shortcutting (rad).
+        duration_s: Duration of the timed trajectory (s).
+        status: The planner's status (``direct``, ``solved``, ``refined``).
+    """
+
+    name: str
+    plan_time_s: float
+    retime_time_s: float
+    waypoints_raw: int
+    waypoints_shortcut: int
+    cost_rad: float
+    duration_s: float
+    status: str
+
+
+@dataclass
+class MachineOutcome:
+    """Everything one run of the machine measured (filled in as the phases run).
+
+    Attributes:
+        phase: The final phase (DONE or FAILED).
+        failure_phase: The phase that failed, or None.
+        failure_reason: Why, with the numbers, or None.
+        failure_kind: The exception class behind the failure (e.g. ``"UnreachableTarget"``), or None.
+        phase_durations_s: Simulated time spent in each phase (s), in order.
+        cycle_time_s: Simulated time from IDLE to DONE (s).
+        segments: The planned segments.
+        ik_position_error_m: Largest tcp position residual of the IK solutions (m).
+        ik_orientation_error_rad: Largest tcp orientation residual of the IK solutions (rad).
+        tracking_error_max_rad: Largest joint tracking error over the trajectory phases (rad).
+        tracking_error_rms_rad: RMS joint tracking error over the trajectory phases (rad).
+        torque_saturation_events: Control steps with a clipped torque, all phases.
+        grip_force_n: Sum of the pads' normal forces when the grip settled (N).
+        lift_grip_force_n: Mean sum of the pads' normal forces during the lift (N).
+        lift_load_n: Vertical force of the pads on the cube at rest at the top of the lift (N), ~ m g.
+        force_closure: Whether the settled grip was force closure (6D wrench test on the actual contacts).
+        grasp_margin: Ferrari–Canny margin of that grip (normalized wrench units).
+        slip_max_m: Largest motion of the cube in the tcp frame while it was held (m).
+        place_error_xy_m, place_error_z_m, place_error_yaw_rad: The cube at rest after the release,
+            relative to the goal (m, m, rad modulo 90 degrees).
+        final_place_error_xy_m: Horizontal error ``stable_after_release_s`` after the release (m).
+        unexpected_contacts: Geom pairs of unexpected contacts seen (empty on success).
+        wall_plan_time_s: Wall time spent planning, IK and retiming (s).
+    """
+
+    phase: Phase = Phase.IDLE
+    failure_phase: Phase | None = None
+    failure_reason: str | None = None
+    failure_kind: str | None = None
+    phase_durations_s: dict[str, float] = field(default_factory=dict)
+    cycle_time_s: float = 0.0
+    segments: list[SegmentPlan] = field(default_factory=list)
+    ik_position_error_m: float = 0.0
+    ik_orientation_error_rad: float = 0.0
+    tracking_error_max_rad: float = 0.0
+    tracking_error_rms_rad: float = 0.0
+    torque_saturation_events: int = 0
+    grip_force_n: float = 0.0
+    lift_grip_force_n: float = 0.0
+    lift_load_n: float = 0.0
+    force_closure: bool = False
+    grasp_margin: float = 0.0
+    slip_max_m: float = 0.0
+    place_error_xy_m: float = math.nan
+    place_error_z_m: float = math.nan
+    place_error_yaw_rad: float = math.nan
+    final_place_error_xy_m: float = math.nan
+    unexpected_contacts: list[tuple[str, str]] = field(default_factory=list)
+    wall_plan_time_s: float = 0.0
+
+
+# Contact classes of the simulation's geoms, for the per-step contact monitor.
+_ARM, _GRIPPER, _PAD, _CUBE, _TABLE, _ENV = range(6)
+
+
+class _Monitor:
+    """The per-step checks: the episode clock, telemetry, unexpected contacts and slip."""
+
+    def __init__(self, robot: Robot, recorder: TelemetryRecorder | None, slip_tolerance_m: float) -> None:
+        m, h = robot.mj, robot.handles
+        self.robot = robot
+        self.recorder = recorder
+        self.dt = float(m.opt.timestep)
+        self.t = 0.0
+        self.phase = Phase.IDLE
+        self.slip_tolerance_m = slip_tolerance_m
+        table = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "table")
+        cls = np.full(m.ngeom, _ENV)
+        cls[np.isin(m.geom_bodyid, list(h.robot_bodies))] = _ARM
+        cls[np.isin(m.geom_bodyid, list(h.gripper_bodies))] = _GRIPPER
+        cls[h.pad_geoms] = _PAD
+        cls[m.geom_bodyid == table] = _TABLE
+        cls[h.cube_geom] = _CUBE
+        self.cls = cls
+        self.allow_hand_cube = False  # gripper/pads touching the cube
+        self.allow_cube_table = True
+        self.holding = False  # slip is checked
+        self._p_tcp_cube0 = np.zeros(3)
+        self.slip_max_m = 0.0
+        self.slip_now_m = 0.0
+
+    def start_holding(self, d: mujoco.MjData) -> None:
+        """Take the cube's current position in the tcp frame as the reference for slip."""
+        self._p_tcp_cube0 = self._p_tcp_cube(d)
+        self.holding = True
+
+    def _p_tcp_cube(self, d: mujoco.MjData) -> np.ndarray:
+        h = self.robot.handles
+        R = d.site_xmat[h.tcp_site].reshape(3, 3)
+        return R.T @ (d.xpos[h.cube_body] - d.site_xpos[h.tcp_site])
+
+    def allowed(self, a: int, b: int) -> bool:
+        """Whether a contact between geom classes a and b is allowed now."""
+        lo, hi = min(a, b), max(a, b)
+        if hi == _CUBE and lo in (_GRIPPER, _PAD):
+            return self.allow_hand_cube
+        if (lo, hi) == (_CUBE, _TABLE):
+            return self.allow_cube_table
+        return False
+
+    def __call__(self, d: mujoco.MjData) -> None:
+        self.t += self.dt
+        if self.recorder is not None:
+            self.recorder.record(d, self.t, self.phase.value)
+        if d.ncon:
+            geoms = d.contact.geom[: d.ncon]
+            classes = self.cls[geoms]
+            bad = [(int(g[0]), int(g[1])) for g, c in zip(geoms, classes, strict=True)
+                   if not self.allowed(int(c[0]), int(c[1]))]
+            if bad:
+                m = self.robot.mj
+                pairs = sorted({tuple(sorted((m.geom(a).name or f"geom{a}", m.geom(b).name or f"geom{b}")))
+                                for a, b in bad})
+                raise UnexpectedContact(pairs, self.t)  # type: ignore[arg-type]
+        if self.holding:
+            slip = float(np.linalg.norm(self._p_tcp_cube(d) - self._p_tcp_cube0))
+            self.slip_now_m = slip
+            self.slip_max_m = max(self.slip_max_m, slip)
+            if slip > self.slip_tolerance_m:
+                raise GraspFailed(f"the cube slipped {slip * 1e3:.2f} mm in the grip at t = {self.t:.3f} s "
+                                  f"(tolerance {self.slip_tolerance_m * 1e3:.2f} mm)")
+
+
+class PickPlaceMachine:
+    """Runs one pick and place in a MuJoCo simulation, phase by phase.
+
+    Args:
+        robot: The models (the scene gives the cube and the goal).
+        data: The simulation state, advanced in place.
+        machine: Tolerances and timeouts.
+        control_config: Controller gains and vertical-move profile.
+        planner: RRT* settings (its seed is the episode's).
+        timing: TOPP-RA limits.
+        ik: IK settings.
+        recorder: Optional telemetry (plots, video).
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        data: mujoco.MjData,
+        machine: MachineConfig,
+        control_config: ControlConfig,
+        planner: PlannerConfig,
+        timing: TimingConfig,
+        ik: IKConfig,
+        recorder: TelemetryRecorder | None = None,
+    ) -> None:
+        self.robot, self.d = robot, data
+        self.cfg, self.ctrl, self.planner, self.timing, self.ik = machine, control_config, planner, timing, ik
+        self.recorder = recorder
+        self.monitor = _Monitor(robot, recorder, machine.slip_tolerance_m)
+        self.out = MachineOutcome()
+        self.configs: GraspConfigurations | None = None
+        self._trajectory: Trajectory | None = None
+        self._payload: Payload | None = None
+        self._T_tcp_cube: pin.SE3 | None = None
+        self._release_t = math.nan
+        self._track_errors: list[np.ndarray] = []
+
+    # ------------------------------------------------------------------ helpers
+    @property
+    def q(self) -> np.ndarray:
+        """Current arm joints (6,) (rad)."""
+        return self.d.qpos[self.robot.handles.arm_qpos].copy()
+
+    def _cube_pose(self) -> pin.SE3:
+        h = self.robot.handles
+        return pin.SE3(self.d.xmat[h.cube_body].reshape(3, 3).copy(), self.d.xpos[h.cube_body].copy())
+
+    def _tcp_pose(self) -> pin.SE3:
+        h = self.robot.handles
+        return pin.SE3(self.d.site_xmat[h.tcp_site].reshape(3, 3).copy(), self.d.site_xpos[h.tcp_site].copy())
+
+    def _note_ik(self, *results: object) -> None:
+        for r in results:
+            self.out.ik_position_error_m = max(self.out.ik_position_error_m, r.position_error_m)  # type: ignore[attr-defined]
+            self.out.ik_orientation_error_rad = max(self.out.ik_orientation_error_rad,
+                                                    r.orientation_error_rad)  # type: ignore[attr-defined]
+
+    def _count(self, rec: control.TrackingRecord | control.CartesianRecord) -> None:
+        self.out.torque_saturation_events += rec.saturation_events
+
+    def _hold(self, q: np.ndarray, duration_s: float) -> control.TrackingRecord:
+        rec = control.hold(self.robot, self.d, q, duration_s, self.ctrl, payload=self._payload, hook=self.monitor)
+        self._count(rec)
+        return rec
+
+    def _plan_segment(self, name: str, checker: CollisionChecker, q_goal: np.ndarray) -> None:
+        t0 = time.perf_counter()
+        res = plan(checker, self.q, q_goal, self.robot.arm_lower, self.robot.arm_upper, self.planner)
+        t1 = time.perf_counter()
+        traj = retime(np.asarray(res.path), self.timing, checker.all_valid)
+        t2 = time.perf_counter()
+        self.out.wall_plan_time_s += t2 - t0
+        self.out.segments.append(SegmentPlan(name, t1 - t0, t2 - t1, len(res.path_raw), len(res.path), res.cost_rad,
+                                             traj.duration_s, res.status.value))
+        self._trajectory = traj
+
+    def _execute(self, phase: Phase) -> None:
+        assert self._trajectory is not None
+        t_start = self.monitor.t
+        rec = control.track(self.robot, self.d, self._trajectory, self.ctrl, payload=self._payload,
+                            hook=self.monitor, settle_s=self.cfg.settle_s)
+        self._count(rec)
+        err = np.abs(rec.q - rec.q_ref)
+        self._track_errors.append(err)
+        if self.recorder is not None:
+            self.recorder.add_joint_segment(phase.value, t_start + rec.t, rec.q, rec.q_ref)
+        if rec.final_error_rad > 0.01:
+            raise PhaseFailed(phase, f"the arm ended {rec.final_error_rad:.4f} rad from the trajectory's end "
+                                     "(limit 0.01 rad)")
+
+    def _vertical(self, phase: Phase, target_z: float) -> control.CartesianRecord:
+        rec = control.move_vertical(self.robot, self.d, target_z, self.ctrl, payload=self._payload,
+                                    hook=self.monitor)
+        self._count(rec)
+        if not rec.reached:
+            raise PhaseFailed(phase, f"the tcp stopped {rec.final_height_error_m * 1e3:.2f} mm from its target "
+                                     "height")
+        return rec
+
+    # ------------------------------------------------------------------ phases
+    def _idle(self) -> Phase:
+        """Observe the cube, solve the four targets (before the arm moves: unreachable goals fail here)."""
+        t0 = time.perf_counter()
+        mujoco.mj_forward(self.robot.mj, self.d)
+        cube = self._cube_pose()
+        configs = solve_grasp_configurations(self.robot, self.ik, cube.translation, yaw_of(cube.rotation))
+        self.robot.scene.check_goal_on_table()
+        self.configs = configs
+        self._note_ik(*configs.results())
+        self.out.wall_plan_time_s += time.perf_counter() - t0
+        return Phase.PLAN_APPROACH
+
+    def _plan_approach(self) -> Phase:
+        assert self.configs is not None
+        checker = CollisionChecker(self.robot, CollisionPolicy(margin_m=self.cfg.planning_margin_m),
+                                   world_qpos=self.d.qpos.copy())
+        self._plan_segment("approach", checker, self.configs.pregrasp.q)
+        return Phase.EXEC_APPROACH
+
+    def _exec_approach(self) -> Phase:
+        self._execute(Phase.EXEC_APPROACH)
+        return Phase.DESCEND
+
+    def _descend(self) -> Phase:
+        assert self.configs is not None
+        target = self.configs.targets.grasp
+        self._vertical(Phase.DESCEND, float(target.translation[2]))
+        tcp = self._tcp_pose()
+        off = float(np.linalg.norm(tcp.translation[:2] - self._cube_pose().translation[:2]))
+        if off > 0.005:
+            raise PhaseFailed(Phase.DESCEND, f"the tcp is {off * 1e3:.1f} mm from the cube's centre (limit 5 mm)")
+        return Phase.CLOSE
+
+    def _close(self) -> Phase:
+        robot, d, cfg = self.robot, self.d, self.cfg
+        self.monitor.allow_hand_cube = True
+        gripper.command(robot, d, True)
+        q_hold = self.q
+        waited = 0.0
+        while True:
+            self._hold(q_hold, cfg.poll_s)
+            waited += cfg.poll_s
+            forces = gripper.pad_forces(robot, d)
+            if (waited >= 5 * cfg.poll_s and gripper.is_settled(robot, d, cfg.finger_settle_speed_m_s)
+                    and np.all(forces >= cfg.min_pad_force_n)):
+                break
+            if waited >= cfg.close_timeout_s:
+                travel = gripper.finger_travel(robot, d)
+                raise GraspFailed(f"the pads did not settle on the cube within {cfg.close_timeout_s:g} s: "
+                                  f"pad forces {forces[0]:.1f} / {forces[1]:.1f} N (need {cfg.min_pad_force_n:g} "
+                                  f"N each), finger travel {travel * 1e3:.1f} mm")
+        contacts, _ = gripper.pad_contacts(robot, d)
+        cube = self._cube_pose()
+        fc = analyze_grasp(contacts, cube.translation, robot.scene.cube_size_m / 2)
+        self.out.grip_force_n = float(forces.sum())
+        self.out.force_closure = fc.force_closure
+        self.out.grasp_margin = fc.margin
+        if not fc.force_closure:
+            raise GraspFailed(f"the grip is not force closure ({len(contacts)} contacts, margin {fc.margin:.3g})")
+        self.monitor.start_holding(d)
+        tcp = self._tcp_pose()
+        self._T_tcp_cube = tcp.actInv(cube)
+        self._payload = Payload.cube(robot.scene, tuple(self._T_tcp_cube.translation))
+        return Phase.LIFT
+
+    def _lift(self) -> Phase:
+        assert self.configs is not None
+        target_z = float(self.configs.targets.pregrasp.translation[2])
+        z_cube0 = float(self._cube_pose().translation[2])
+        self.monitor.allow_cube_table = True  # until it leaves the table
+        forces: list[float] = []
+        loads: list[float] = []
+        monitor = self.monitor
+
+        def hook(d: mujoco.MjData) -> None:
+            monitor(d)
+            if monitor.allow_cube_table and d.xpos[self.robot.handles.cube_body][2] > z_cube0 + 0.003:
+                monitor.allow_cube_table = False  # airborne: touching the table again is a failure
+            _, f = gripper.pad_contacts(self.robot, d)
+            forces.append(float(gripper.pad_forces(self.robot, d).sum()))
+            loads.append(float(f[2]))
+
+        rec = control.move_vertical(self.robot, self.d, target_z, self.ctrl, payload=self._payload, hook=hook)
+        self._count(rec)
+        if not rec.reached:
+            raise PhaseFailed(Phase.LIFT, f"the tcp stopped {rec.final_height_error_m * 1e3:.2f} mm from the lift "
+                                          "height")
+        self.monitor.allow_cube_table = False
+        rise = float(self._cube_pose().translation[2]) - z_cube0
+        lifted = target_z - float(self.configs.targets.grasp.translation[2])
+        if abs(rise - lifted) > self.cfg.slip_tolerance_m:
+            raise GraspFailed(f"the cube rose {rise * 1e3:.1f} mm while the tcp rose {lifted * 1e3:.1f} mm")
+        half = len(forces) // 2  # the second half: the cube is off the table
+        self.out.lift_grip_force_n = float(np.mean(forces[half:])) if forces else 0.0
+        self.out.lift_load_n = float(np.mean(loads[-20:])) if loads else 0.0  # at rest at the top: ~ m g
+        return Phase.PLAN_TRANSPORT
+
+    def _carrying(self, margin_m: float, allow_cube_table: bool) -> CollisionChecker:
+        assert self.configs is not None
+        policy = CollisionPolicy(margin_m=margin_m, cube_held=True, allow_cube_table=allow_cube_table,
+                                 finger_m=gripper.finger_travel(self.robot, self.d))
+        return CollisionChecker(self.robot, policy, world_qpos=self.d.qpos.copy(), T_tcp_cube=self._T_tcp_cube)
+
+    def _plan_transport(self) -> Phase:
+        """Re-target the place from the cube's measured pose in the hand, then plan to above the goal."""
+        assert self.configs is not None
+        t0 = time.perf_counter()
+        tcp, cube = self._tcp_pose(), self._cube_pose()
+        self._T_tcp_cube = tcp.actInv(cube)
+        preplace, place, _ = place_targets(self.robot.scene, tcp, cube, self.configs.targets.place_yaw_rad)
+        finger = gripper.finger_travel(self.robot, self.d)
+        carry_ik = self._carrying(0.0, False)
+        place_ik = self._carrying(0.0, True)
+        pre = solve_ik(self.robot, preplace, self.configs.preplace.q, "preplace", self.ik, carry_ik.is_valid, finger)
+        low = solve_ik(self.robot, place, pre.q, "place", self.ik, place_ik.is_valid, finger)
+        self._note_ik(pre, low)
+        self.out.wall_plan_time_s += time.perf_counter() - t0
+        self._plan_segment("transport", self._carrying(self.cfg.planning_margin_m, False), pre.q)
+        return Phase.EXEC_TRANSPORT
+
+    def _exec_transport(self) -> Phase:
+        self._execute(Phase.EXEC_TRANSPORT)
+        return Phase.DESCEND_PLACE
+
+    def _descend_place(self) -> Phase:
+        """Re-aim from the cube's pose in the hand *now* (it shifts a little in transit), then set it down."""
+        assert self.configs is not None
+        t0 = time.perf_counter()
+        tcp, cube = self._tcp_pose(), self._cube_pose()
+        preplace, place, _ = place_targets(self.robot.scene, tcp, cube, self.configs.targets.place_yaw_rad)
+        finger = gripper.finger_travel(self.robot, self.d)
+        aim = solve_ik(self.robot, preplace, self.q, "preplace", self.ik, finger_m=finger)
+        self._note_ik(aim)
+        self.out.wall_plan_time_s += time.perf_counter() - t0
+        if float(np.max(np.abs(aim.q - self.q))) > 1e-5:
+            self._trajectory = retime(np.vstack([self.q, aim.q]), self.timing)
+            self._execute(Phase.DESCEND_PLACE)
+        monitor = self.monitor
+        z_table_touch = self.robot.scene.goal_pos_m[2] + 0.003
+
+        def hook(d: mujoco.MjData) -> None:
+            if d.xpos[self.robot.handles.cube_body][2] < z_table_touch:
+                monitor.allow_cube_table = True  # setting it down
+            monitor(d)
+
+        rec = control.move_vertical(self.robot, self.d, float(place.translation[2]), self.ctrl,
+                                    payload=self._payload, hook=hook)
+        self._count(rec)
+        if not rec.reached:
+            raise PhaseFailed(Phase.DESCEND_PLACE, f"the tcp stopped {rec.final_height_error_m * 1e3:.2f} mm from "
+                                                   "the place height")
+        return Phase.RELEASE
+
+    def _release(self) -> Phase:
+        robot, d, cfg = self.robot, self.d, self.cfg
+        self.monitor.holding = False
+        self.monitor.allow_cube_table = True
+        self._payload = None
+        gripper.command(robot, d, False)
+        self._release_t = self.monitor.t
+        q_hold = self.q
+        geom = gripper.GripperGeometry.measure(robot)
+        clear_travel = geom.contact_travel_m(robot.scene.cube_size_m) - cfg.release_clearance_m
+        waited = 0.0
+        while True:
+            self._hold(q_hold, cfg.poll_s)
+            waited += cfg.poll_s
+            forces = gripper.pad_forces(robot, d)
+            travel = gripper.finger_travel(robot, d)
+            cube_speed = float(np.linalg.norm(d.qvel[robot.handles.cube_dof: robot.handles.cube_dof + 3]))
+            if travel <= clear_travel and not np.any(forces > 0.0) and cube_speed < cfg.cube_rest_speed_m_s:
+                break
+            if waited >= cfg.release_timeout_s:
+                raise PhaseFailed(Phase.RELEASE, f"the pads did not clear the cube within {cfg.release_timeout_s:g} "
+                                                 f"s (finger travel {travel * 1e3:.1f} mm, pad forces "
+                                                 f"{forces[0]:.2f} / {forces[1]:.2f} N, cube speed "
+                                                 f"{cube_speed * 1e3:.1f} mm/s)")
+        self.monitor.allow_hand_cube = False
+        self._measure_place()
+        if self.out.place_error_xy_m > cfg.place_tolerance_xy_m:
+            raise PhaseFailed(Phase.RELEASE, f"the cube rests {self.out.place_error_xy_m * 1e3:.2f} mm from the goal "
+                                             f"(tolerance {cfg.place_tolerance_xy_m * 1e3:.2f} mm)")
+        if abs(self.out.place_error_z_m) > cfg.place_tolerance_z_m:
+            raise PhaseFailed(Phase.RELEASE, f"the cube rests {self.out.place_error_z_m * 1e3:.2f} mm above the "
+                                             "table (it should sit on it)")
+        if abs(self.out.place_error_yaw_rad) > cfg.place_tolerance_yaw_rad:
+            raise PhaseFailed(Phase.RELEASE, f"the cube's yaw is {self.out.place_error_yaw_rad:.3f} rad off the "
+                                             "goal's")
+        return Phase.RETRACT
+
+    def _measure_place(self) -> None:
+        scene = self.robot.scene
+        cube = self._cube_pose()
+        err = cube.translation - scene.goal_pos_m
+        self.out.place_error_xy_m = float(np.hypot(err[0], err[1]))
+        self.out.place_error_z_m = float(err[2])
+        dyaw = float(wrap_to_pi(yaw_of(cube.rotation) - scene.goal_yaw_rad))
+        self.out.place_error_yaw_rad = float(wrap_to_pi(4 * dyaw) / 4)  # the cube looks the same every 90 deg
+
+    def _retract(self) -> Phase:
+        tcp_z = float(self._tcp_pose().translation[2])
+        self._vertical(Phase.RETRACT, tcp_z + self.cfg.retract_height_m)
+        checker = CollisionChecker(self.robot, CollisionPolicy(margin_m=self.cfg.planning_margin_m),
+                                   world_qpos=self.d.qpos.copy())
+        self._plan_segment("return", checker, self.robot.home_q)
+        self._execute(Phase.RETRACT)
+        return Phase.DONE
+
+    # ------------------------------------------------------------------ driver
+    def run(self) -> MachineOutcome:
+        """Run the phases to DONE or FAILED; never raises for a failure of the task itself."""
+        steps = {
+            Phase.IDLE: self._idle, Phase.PLAN_APPROACH: self._plan_approach,
+            Phase.EXEC_APPROACH: self._exec_approach, Phase.DESCEND: self._descend, Phase.CLOSE: self._close,
+            Phase.LIFT: self._lift, Phase.PLAN_TRANSPORT: self._plan_transport,
+            Phase.EXEC_TRANSPORT: self._exec_transport, Phase.DESCEND_PLACE: self._descend_place,
+            Phase.RELEASE: self._release, Phase.RETRACT: self._retract,
+        }
+        phase = Phase.IDLE
+        out = self.out
+        while phase is not Phase.DONE:
+            self.monitor.phase = phase
+            t0 = self.monitor.t
+            try:
+                nxt = steps[phase]()
+            except ConfigError:
+                raise  # bad input is the caller's error, not a failed episode
+            except PickPlaceError as exc:
+                out.phase_durations_s[phase.value] = self.monitor.t - t0
+                self._fail(phase, exc)
+                break
+            out.phase_durations_s[phase.value] = self.monitor.t - t0
+            log.debug("%s done in %.3f s (t = %.3f s)", phase.value, self.monitor.t - t0, self.monitor.t)
+            phase = nxt
+        else:
+            out.phase = Phase.DONE
+            out.cycle_time_s = self.monitor.t
+            self._after_done()
+        out.slip_max_m = self.monitor.slip_max_m
+        if self._track_errors:
+            errs = np.concatenate(self._track_errors)
+            out.tracking_error_max_rad = float(errs.max())
+            out.tracking_error_rms_rad = float(np.sqrt(np.mean(errs**2)))
+        return out
+
+    def _fail(self, phase: Phase, exc: PickPlaceError) -> None:
+        out = self.out
+        out.phase = Phase.FAILED
+        out.failure_phase = exc.phase if isinstance(exc, PhaseFailed) else phase
+        out.failure_reason = exc.reason if isinstance(exc, PhaseFailed) else str(exc)
+        out.failure_kind = type(exc).__name__
+        out.cycle_time_s = self.monitor.t
+        if isinstance(exc, UnexpectedContact):
+            out.unexpected_contacts = list(exc.pairs)
+        log.info("episode failed in %s: %s", out.failure_phase.value, out.failure_reason)
+
+    def _after_done(self) -> None:
+        """Keep simulating at home until ``stable_after_release_s`` after the release; measure the cube."""
+        remaining = self._release_t + self.cfg.stable_after_release_s - self.monitor.t
+        self.monitor.phase = Phase.DONE
+        try:
+            if remaining > 0:
+                self._hold(self.robot.home_q, remaining)
+        except PickPlaceError as exc:
+            self._fail(Phase.DONE, exc)
+            return
+        cube = self._cube_pose()
+        err = cube.translation[:2] - self.robot.scene.goal_pos_m[:2]
+        self.out.final_place_error_xy_m = float(np.hypot(err[0], err[1]))
+
+
+__all__ = ["MachineConfig", "MachineOutcome", "Phase", "PhaseFailed", "PickPlaceMachine", "SegmentPlan",
+           "UnexpectedContact"]

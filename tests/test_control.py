@@ -1,0 +1,277 @@
+"""Joint and Cartesian impedance control on the real MuJoCo scene and Pinocchio model (no mocks).
+
+Every test prints its measured figures (``pytest -s``) and asserts them with explicit tolerances.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from pickplace import control, gripper
+from pickplace.collision import CollisionChecker, CollisionPolicy
+from pickplace.configurations import GraspConfigurations
+from pickplace.control import ControlConfig, Payload
+from pickplace.errors import ConfigError, ControlError, GraspFailed
+from pickplace.model import Robot
+from pickplace.timing import TimingConfig, retime
+
+#: A stretched pose behind the robot, away from the table: about 61 N m of gravity on the shoulder.
+STRETCHED_Q = np.array([-0.4, -0.5, 0.2, -1.2, 1.5708, 0.0])
+
+
+def _data_at(robot: Robot, q: np.ndarray) -> mujoco.MjData:
+    """Fresh data (gripper open, cube at its start) with the arm at rest at ``q``."""
+    d = robot.make_data()
+    d.qpos[robot.handles.arm_qpos] = q
+    mujoco.mj_forward(robot.mj, d)
+    return d
+
+
+def _tcp(robot: Robot, d: mujoco.MjData) -> np.ndarray:
+    """Tcp position (3,) (m) of the current state, by MuJoCo's own kinematics."""
+    mujoco.mj_kinematics(robot.mj, d)
+    return d.site_xpos[robot.handles.tcp_site].copy()
+
+
+# --------------------------------------------------------------------------- #
+# configuration
+# --------------------------------------------------------------------------- #
+
+
+@pytest.mark.parametrize(("kwargs", "field"), [
+    ({"joint_kp_nm_rad": (-1.0, 200, 200, 100, 100, 100)}, "control.joint_kp_nm_rad[0]"),
+    ({"joint_kp_nm_rad": (200, 200, math.nan, 100, 100, 100)}, "control.joint_kp_nm_rad[2]"),
+    ({"joint_kp_nm_rad": (200, 200, 200)}, "control.joint_kp_nm_rad"),
+    ({"joint_damping_ratio": 0.0}, "control.joint_damping_ratio"),
+    ({"feedforward": 1}, "control.feedforward"),
+    ({"cartesian_stiffness_n_m": -5.0}, "control.cartesian_stiffness_n_m"),
+    ({"cartesian_rot_stiffness_nm_rad": math.inf}, "control.cartesian_rot_stiffness_nm_rad"),
+    ({"posture_kp_nm_rad": math.nan}, "control.posture_kp_nm_rad"),
+    ({"vertical_speed_m_s": 0.0}, "control.vertical_speed_m_s"),
+    ({"height_tolerance_m": -1e-3}, "control.height_tolerance_m"),
+    ({"settle_timeout_s": "1"}, "control.settle_timeout_s"),
+])
+def test_config_rejects_bad_values(kwargs: dict, field: str) -> None:
+    with pytest.raises(ConfigError) as info:
+        ControlConfig(**kwargs)
+    assert info.value.field == field
+    assert field in str(info.value)
+
+
+def test_config_defaults_and_gains() -> None:
+    cfg = ControlConfig()
+    np.testing.assert_allclose(cfg.joint_kd, 2.0 * np.sqrt([200, 200, 200, 100, 100, 100]))
+    assert cfg.feedforward is True
+    # minimum-jerk peak speed 1.875 d / T: 0.15 m at 0.6 m/s peak takes 0.46875 s; the peak acceleration
+    # 10/sqrt(3) d / T^2 then is 3.94 m/s^2, inside the 4 m/s^2 limit
+    assert cfg.vertical_duration_s(0.15) == pytest.approx(1.875 * 0.15 / 0.6)
+    assert 10 / np.sqrt(3) * 0.15 / cfg.vertical_duration_s(0.15) ** 2 <= cfg.vertical_accel_m_s2
+    assert cfg.vertical_duration_s(0.0) == cfg.vertical_min_duration_s
+    with pytest.raises(ConfigError, match=r"payload\.mass_kg"):
+        Payload(mass_kg=-0.1)
+
+
+# --------------------------------------------------------------------------- #
+# control laws
+# --------------------------------------------------------------------------- #
+
+
+def test_laws_at_rest_are_mujocos_gravity(robot: Robot) -> None:
+    """On the reference and at rest, both laws output exactly the gravity torque MuJoCo applies."""
+    d = _data_at(robot, STRETCHED_Q)
+    g_mj = d.qfrc_bias[robot.handles.arm_dof]
+    arm = control.arm_model(robot)
+    cfg = ControlConfig()
+    z = np.zeros(6)
+    tau_j = control.joint_impedance(arm, STRETCHED_Q, z, STRETCHED_Q, z, z, cfg.joint_kp, cfg.joint_kd)
+    tau_g = control.joint_impedance(arm, STRETCHED_Q, z, STRETCHED_Q, z, z, cfg.joint_kp, cfg.joint_kd,
+                                    feedforward=False)
+    p = d.site_xpos[robot.handles.tcp_site].copy()
+    R = d.site_xmat[robot.handles.tcp_site].reshape(3, 3).copy()
+    cmd = control.cartesian_impedance(arm, STRETCHED_Q, z, p, np.zeros(3), np.zeros(3), R, cfg.cartesian_stiffness,
+                                      1.0, STRETCHED_Q, cfg.posture_kp_nm_rad, cfg.posture_kd)
+    worst = max(np.abs(t - g_mj).max() for t in (tau_j, tau_g, cmd.tau))
+    print(f"\nlaws at rest vs MuJoCo qfrc_bias: max |diff| {worst:.2e} N m (gravity up to {np.abs(g_mj).max():.1f})")
+    assert worst < 1e-6
+    assert np.abs(cmd.error).max() < 1e-9
+
+
+def test_payload_adds_its_weight_through_the_tcp_jacobian(robot: Robot) -> None:
+    """A 1 kg payload at the tcp adds J_v^T (0, 0, m g) to the gravity torque."""
+    q = STRETCHED_Q
+    z = np.zeros(6)
+    kp = kd = np.zeros(6)
+    bare = control.joint_impedance(control.arm_model(robot), q, z, q, z, z, kp, kd, feedforward=False)
+    loaded = control.joint_impedance(control.arm_model(robot, Payload(1.0)), q, z, q, z, z, kp, kd,
+                                     feedforward=False)
+    pdata = robot.pin.createData()
+    J = pin.computeFrameJacobian(robot.pin, pdata, robot.pin_q(q), robot.pin_tcp_frame, pin.LOCAL_WORLD_ALIGNED)
+    expected = J[:3, :6].T @ np.array([0.0, 0.0, 9.81])
+    print(f"\npayload gravity torque: {np.round(loaded - bare, 4)} N m, expected {np.round(expected, 4)}")
+    np.testing.assert_allclose(loaded - bare, expected, atol=1e-9)
+
+
+def test_min_jerk_profile() -> None:
+    t = np.linspace(-0.1, 1.1, 1201)
+    s, sd, sdd = control.min_jerk(t, 1.0)
+    assert s[0] == 0.0 and s[-1] == 1.0 and sd[0] == 0.0 and sd[-1] == 0.0
+    assert sd.max() == pytest.approx(1.875, rel=1e-4)
+    np.testing.assert_allclose(np.gradient(s, t)[110:1090], sd[110:1090], atol=1e-4)
+    np.testing.assert_allclose(np.gradient(sd, t)[110:1090], sdd[110:1090], atol=1e-3)
+
+
+# --------------------------------------------------------------------------- #
+# joint loops
+# --------------------------------------------------------------------------- #
+
+
+def test_gravity_compensation_holds_four_poses(robot: Robot, configs: GraspConfigurations) -> None:
+    """Joint impedance without feedforward holds the arm still for 2 s at four collision-free poses."""
+    checker = CollisionChecker(robot, CollisionPolicy(margin_m=0.0))
+    cfg = ControlConfig(feedforward=False)
+    poses = {"home": robot.home_q, "pregrasp": configs.pregrasp.q, "preplace": configs.preplace.q,
+             "stretched": STRETCHED_Q}
+    print()
+    for name, q in poses.items():
+        assert checker.is_valid(q), name
+        d = _data_at(robot, q)
+        rec = control.hold(robot, d, q, 2.0, cfg)
+        print(f"hold {name:9s} 2 s: drift max {rec.max_error_rad:.2e} rad, final {rec.final_error_rad:.2e} rad, "
+              f"|tau| max {np.abs(rec.tau).max():.1f} N m, {rec.saturation_events} saturated steps")
+        assert rec.steps == 2000 and rec.duration_s == pytest.approx(2.0)
+        assert rec.max_error_rad < 1e-4
+        assert rec.saturation_events == 0
+
+
+def test_tracks_home_to_pregrasp(robot: Robot, configs: GraspConfigurations) -> None:
+    """A TOPP-RA trajectory (at the UR5e's limits) is tracked within 2 mrad, without saturating."""
+    traj = retime(np.array([robot.home_q, configs.pregrasp.q]), TimingConfig.ur5e())
+    d = _data_at(robot, robot.home_q)
+    rec = control.track(robot, d, traj, ControlConfig())
+    no_ff = control.track(robot, _data_at(robot, robot.home_q), traj, ControlConfig(feedforward=False))
+    print(f"\ntrack home->pregrasp ({traj.duration_s:.3f} s + 0.1 s settle): max {rec.max_error_rad * 1e3:.2e} mrad, "
+          f"rms {rec.rms_error_rad * 1e3:.2e} mrad, final {rec.final_error_rad * 1e3:.2e} mrad, "
+          f"{rec.saturation_events} saturated steps; without feedforward max {no_ff.max_error_rad * 1e3:.2f} mrad")
+    assert rec.max_error_rad < 2e-3
+    assert rec.final_error_rad < 1e-4
+    assert rec.saturation_events == 0
+    assert rec.steps == math.ceil(traj.duration_s / 1e-3 - 1e-9) + 100
+    assert rec.q.shape == rec.q_ref.shape == (rec.steps + 1, 6) and rec.tau.shape == (rec.steps, 6)
+    np.testing.assert_allclose(rec.q_ref[-1], configs.pregrasp.q, atol=1e-12)
+    assert no_ff.max_error_rad > 10 * rec.max_error_rad  # feedforward is what makes it accurate
+
+
+def test_cube_in_hand_lift_and_carry(robot: Robot, configs: GraspConfigurations) -> None:
+    """Close on the cube, lift it 0.15 m with Cartesian impedance and carry it to preplace with the payload."""
+    payload = Payload.cube(robot.scene, (0.0, 0.0, configs.targets.tcp_above_cube_m))
+    cfg = ControlConfig()
+    grasp_z = configs.targets.grasp.translation[2]
+
+    def grasp_and_lift() -> tuple[mujoco.MjData, control.CartesianRecord]:
+        d = _data_at(robot, configs.grasp.q)
+        gripper.command(robot, d, closed=True)
+        control.hold(robot, d, configs.grasp.q, 0.5, cfg)  # the table carries the cube while it closes
+        assert gripper.in_contact(robot, d, min_force_n=10.0)
+        lift = control.move_vertical(robot, d, grasp_z + 0.15, cfg, payload=payload)
+        return d, lift
+
+    d, lift = grasp_and_lift()
+    print(f"\nlift 0.15 m with the cube: final height error {lift.final_height_error_m * 1e3:.2e} mm, lateral drift "
+          f"{lift.lateral_drift_max_m * 1e3:.3f} mm, orientation {lift.orientation_error_max_rad:.2e} rad, "
+          f"{lift.duration_s:.3f} s, {lift.saturation_events} saturated steps")
+    assert lift.reached
+    assert abs(lift.final_height_error_m) < 5e-4
+    assert lift.lateral_drift_max_m < 5e-4
+    assert lift.orientation_error_max_rad < 1e-3
+    assert lift.saturation_events == 0
+
+    q_lifted = d.qpos[robot.handles.arm_qpos].copy()
+    carry = retime(np.array([q_lifted, configs.preplace.q]), TimingConfig.ur5e(),
+                   configs.carrying_checker(robot, margin_m=0.0).all_valid)
+    rec = control.track(robot, d, carry, cfg, payload=payload)
+    cube_in_tcp = d.xpos[robot.handles.cube_body] - _tcp(robot, d)
+    d2, _ = grasp_and_lift()
+    without = control.track(robot, d2, carry, cfg)
+    print(f"carry to preplace ({carry.duration_s:.3f} s): max error {rec.max_error_rad * 1e3:.3f} mrad with payload "
+          f"compensation, {without.max_error_rad * 1e3:.3f} mrad without; {rec.saturation_events} saturated steps; "
+          f"cube {np.linalg.norm(cube_in_tcp) * 1e3:.2f} mm from the tcp")
+    assert rec.max_error_rad < 2e-3
+    assert rec.saturation_events == 0
+    assert without.max_error_rad > 2 * rec.max_error_rad
+    assert gripper.in_contact(robot, d, min_force_n=10.0)
+    assert np.linalg.norm(cube_in_tcp) < 2e-3
+
+
+# --------------------------------------------------------------------------- #
+# Cartesian loop
+# --------------------------------------------------------------------------- #
+
+
+def test_cartesian_descent_and_lift(robot: Robot, configs: GraspConfigurations) -> None:
+    """Down 0.15 m from pregrasp (around the resting cube, gripper open) and back up."""
+    d = _data_at(robot, configs.pregrasp.q)
+    start = _tcp(robot, d)
+    cfg = ControlConfig()
+    print()
+    for name, z in (("descent", start[2] - 0.15), ("lift", start[2])):
+        rec = control.move_vertical(robot, d, z, cfg)
+        tcp = _tcp(robot, d)
+        print(f"{name}: {rec.duration_s:.3f} s (profile {rec.profile_duration_s:.3f} s), final height error "
+              f"{rec.final_height_error_m * 1e3:.2e} mm (MuJoCo site {(tcp[2] - z) * 1e3:.2e} mm), lateral drift "
+              f"{rec.lateral_drift_max_m * 1e3:.2e} mm, orientation {rec.orientation_error_max_rad:.2e} rad, "
+              f"max |z - z_ref| {np.abs(rec.z - rec.z_ref).max() * 1e3:.2e} mm, {rec.saturation_events} saturated")
+        assert rec.reached
+        assert abs(rec.final_height_error_m) < 5e-4 and abs(tcp[2] - z) < 5e-4
+        assert rec.lateral_drift_max_m < 5e-4 and np.linalg.norm(tcp[:2] - start[:2]) < 5e-4
+        assert rec.orientation_error_max_rad < 1e-3
+        assert rec.saturation_events == 0
+        assert rec.z.shape == rec.z_ref.shape == rec.t.shape == (rec.steps + 1,)
+
+
+# --------------------------------------------------------------------------- #
+# failures
+# --------------------------------------------------------------------------- #
+
+
+def test_hook_exception_aborts_the_loop(robot: Robot) -> None:
+    d = _data_at(robot, robot.home_q)
+    d.ctrl[robot.handles.gripper_actuator] = 0.0123  # a value no loop would write
+    calls = []
+
+    def hook(data: mujoco.MjData) -> None:
+        calls.append(data.time)
+        if len(calls) == 5:
+            raise GraspFailed("slip detected")
+
+    with pytest.raises(GraspFailed, match="slip"):
+        control.hold(robot, d, robot.home_q, 1.0, ControlConfig(), hook=hook)
+    assert len(calls) == 5 and d.time == pytest.approx(0.005)
+    assert d.ctrl[robot.handles.gripper_actuator] == 0.0123  # the loops never touch the gripper
+
+
+def test_timeouts_and_tracking_bounds_raise(robot: Robot, configs: GraspConfigurations) -> None:
+    # a height tolerance no real motion meets: times out 50 ms after the profile
+    impossible = ControlConfig(height_tolerance_m=1e-12, settle_timeout_s=0.05)
+    d = _data_at(robot, configs.pregrasp.q)
+    z = configs.targets.pregrasp.translation[2] - 0.01
+    with pytest.raises(ControlError, match="not settled") as info:
+        control.move_vertical(robot, d, z, impossible)
+    assert info.value.phase == "move_vertical" and not info.value.record.reached
+    rec = control.move_vertical(robot, _data_at(robot, configs.pregrasp.q), z, impossible, raise_on_timeout=False)
+    assert not rec.reached and rec.duration_s == pytest.approx(rec.profile_duration_s + 0.05, abs=2e-3)
+
+    # pushing the tcp into the table: the tcp error grows past its bound
+    d = _data_at(robot, configs.pregrasp.q)
+    with pytest.raises(ControlError, match="tcp error"):
+        control.move_vertical(robot, d, robot.scene.table_height_m - 0.05, ControlConfig())
+
+    # a start far from the trajectory exceeds the joint error bound at once
+    traj = retime(np.array([robot.home_q, configs.pregrasp.q]), TimingConfig.ur5e())
+    with pytest.raises(ControlError, match="joint error") as info:
+        control.track(robot, _data_at(robot, STRETCHED_Q), traj, ControlConfig())
+    assert info.value.record.steps == 0
