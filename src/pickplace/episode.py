@@ -148,8 +148,9 @@ class EpisodeResult:
         tracking_error_max_rad: Largest joint tracking error over every trajectory.
         tracking_error_rms_rad: RMS joint tracking error over every trajectory.
         grip_force_n: Sum of the pads' normal forces when the grip settled.
-        lift_grip_force_n: Mean sum of the pads' normal forces while lifting.
-        lift_load_n: Vertical force the pads carry at the end of the lift (~ m g).
+        lift_grip_force_n: Mean sum of the pads' normal forces while the cube is lifted off the table.
+        lift_load_n: Weight carried by the pads while lifting (their vertical force minus m times the cube's
+            vertical acceleration, averaged); m g when the pads alone hold the cube.
         force_closure: The settled grip passed the 6D force-closure test on the simulated contacts.
         grasp_margin: Ferrari–Canny margin of that grip.
         slip_max_m: Largest motion of the cube in the tcp frame while held.
