@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -78,3 +79,16 @@ def test_version_subprocess() -> None:
                           timeout=60, check=False)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == f"pickplace {__version__}"
+
+
+def test_run_viewer_without_a_display_says_so() -> None:
+    """``--viewer`` on a headless machine: one clear line pointing to ``--video``, before anything runs."""
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    proc = subprocess.run([sys.executable, "-m", "pickplace", "run", "--viewer"], capture_output=True, text=True,
+                          timeout=120, env=env)
+    if sys.platform in ("darwin", "win32"):
+        pytest.skip("those platforms always have a display")
+    assert proc.returncode == 1
+    assert proc.stdout == "" and "Traceback" not in proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "--viewer needs a display" in lines[0] and "--video" in lines[0]

@@ -127,7 +127,7 @@ class MachineConfig:
     place_tolerance_z_m: float = 0.003
     place_tolerance_yaw_rad: float = 0.05
     retract_height_m: float = 0.06
-    settle_s: float = 0.05
+    settle_s: float = 0.02
     poll_s: float = 0.01
     stable_after_release_s: float = 1.0
 
