@@ -96,6 +96,19 @@ class CollisionChecker:
         assert np.array_equal(h.arm_qpos, np.arange(self._arm.start, self._arm.stop)), "arm qpos must be contiguous"
         self._configure_filters()
 
+    def set_world(self, d: mujoco.MjData) -> None:
+        """Take the pose of everything that is not the arm from a simulation state (the cube, mocap bodies).
+
+        The arm joints in ``d`` are ignored (each check sets them); the fingers keep the policy's opening.
+        """
+        h = self._handles
+        arm = self._d.qpos[self._arm].copy()
+        self._d.qpos[:] = d.qpos
+        self._d.qpos[self._arm] = arm
+        self._d.qpos[h.finger_qpos] = self.policy.finger_m
+        self._d.mocap_pos[:] = d.mocap_pos
+        self._d.mocap_quat[:] = d.mocap_quat
+
     def _weld_held_cube(self, T_tcp_cube: pin.SE3) -> None:
         """Pose the held cube's body in its parent (the body carrying the tcp site): T_tcp_site * T_tcp_cube."""
         m, tcp = self._m, self._handles.tcp_site

@@ -536,6 +536,23 @@ class CartesianRecord:
 # --------------------------------------------------------------------------- #
 
 
+@dataclass(frozen=True, eq=False)
+class JointNoise:
+    """Gaussian noise on the joint positions the controller reads (a sensor fault).
+
+    Attributes:
+        std_rad: Standard deviation per joint (rad).
+        rng: The seeded generator the noise is drawn from.
+    """
+
+    std_rad: float
+    rng: np.random.Generator
+
+    def sample(self) -> np.ndarray:
+        """One draw (6,) (rad)."""
+        return self.rng.normal(0.0, self.std_rad, N_ARM)
+
+
 def _grid_reference(q: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Step-consistent reference from positions q (n + 2, k) sampled at t = -dt, 0, dt, ..., n dt.
 
@@ -560,6 +577,7 @@ def _run_joint(
     config: ControlConfig,
     payload: Payload | None,
     hook: Hook | None,
+    noise: JointNoise | None = None,
 ) -> TrackingRecord:
     """Run joint impedance along a step-grid reference (n + 1, 6) for n steps."""
     m, h = robot.mj, robot.handles
@@ -584,7 +602,7 @@ def _run_joint(
             tau=tau_log[:steps].copy())
 
     for k in range(n + 1):
-        q = qpos[arm_q]
+        q = qpos[arm_q] if noise is None else qpos[arm_q] + noise.sample()
         q_log[k] = q
         err = float(abs(q_ref[k] - q).max())
         if not err <= config.max_joint_error_rad:  # also catches NaN
@@ -615,6 +633,7 @@ def track(
     *,
     payload: Payload | None = None,
     hook: Hook | None = None,
+    noise: JointNoise | None = None,
     settle_s: float = 0.1,
 ) -> TrackingRecord:
     """Track a joint trajectory with joint impedance, then hold its final point for ``settle_s``.
@@ -626,6 +645,7 @@ def track(
         config: Gains.
         payload: An object held at the tcp (compensated in gravity and feedforward).
         hook: Called with ``data`` after every simulation step; may raise to abort.
+        noise: Noise added to the joint positions the controller reads (a sensor fault), or None.
         settle_s: Time to hold the final point after the trajectory ends (s).
 
     Returns:
@@ -640,7 +660,7 @@ def track(
     n = math.ceil(trajectory.duration_s / dt - 1e-9) + round(settle_s / dt)
     qs, _, _ = trajectory.sample_many(np.arange(-1, n + 1) * dt)
     q_ref, qd_ref, qdd_ref = _grid_reference(qs, dt)
-    return _run_joint(robot, data, "track", q_ref, qd_ref, qdd_ref, config, payload, hook)
+    return _run_joint(robot, data, "track", q_ref, qd_ref, qdd_ref, config, payload, hook, noise)
 
 
 def hold(
@@ -652,6 +672,7 @@ def hold(
     *,
     payload: Payload | None = None,
     hook: Hook | None = None,
+    noise: JointNoise | None = None,
 ) -> TrackingRecord:
     """Regulate the arm to a fixed configuration for ``duration_s`` (e.g. while the gripper closes).
 
@@ -663,6 +684,7 @@ def hold(
         config: Gains.
         payload: An object held at the tcp.
         hook: Called with ``data`` after every simulation step; may raise to abort.
+        noise: Noise added to the joint positions the controller reads (a sensor fault), or None.
 
     Returns:
         The :class:`TrackingRecord` (errors relative to ``q``).
@@ -676,7 +698,7 @@ def hold(
     n = round(duration_s / float(robot.mj.opt.timestep))
     q_ref = np.repeat(target[None], n + 1, axis=0)
     zeros = np.zeros_like(q_ref)
-    return _run_joint(robot, data, "hold", q_ref, zeros, zeros, config, payload, hook)
+    return _run_joint(robot, data, "hold", q_ref, zeros, zeros, config, payload, hook, noise)
 
 
 def move_vertical(
@@ -687,6 +709,7 @@ def move_vertical(
     *,
     payload: Payload | None = None,
     hook: Hook | None = None,
+    noise: JointNoise | None = None,
     duration_s: float | None = None,
     raise_on_timeout: bool = True,
 ) -> CartesianRecord:
@@ -705,6 +728,7 @@ def move_vertical(
         config: Gains and motion parameters.
         payload: An object held at the tcp.
         hook: Called with ``data`` after every simulation step; may raise to abort.
+        noise: Noise added to the joint positions the controller reads (a sensor fault), or None.
         duration_s: Profile duration (s), overriding the config's speed and acceleration limits.
         raise_on_timeout: Raise :class:`ControlError` on timeout; otherwise return with ``reached=False``.
 
@@ -759,7 +783,7 @@ def move_vertical(
     x0, y0 = float(p0[0]), float(p0[1])
     tol_z, tol_v, tol_e = config.height_tolerance_m, config.settle_speed_m_s, config.max_tcp_error_m
     for k in range(n_max + 1):
-        q = qpos[arm_q]
+        q = qpos[arm_q] if noise is None else qpos[arm_q] + noise.sample()
         p_ref[2], v_ref[2], a_ref[2] = z_ref[k], zd_ref[k], zdd_ref[k]
         try:
             cmd = cartesian_impedance(arm, q, qvel[arm_v], p_ref, v_ref, a_ref, R_ref, stiffness, zeta, q0,

@@ -14,7 +14,8 @@ Configs can be written as TOML, one table per part::
     [planner]
     time_budget_s = 0.5
 
-Tables: ``scene``, ``machine``, ``control``, ``planner``, ``timing``, ``ik``; keys are the dataclass fields.
+Tables: ``scene``, ``machine``, ``control``, ``planner``, ``timing``, ``ik``, ``faults``; keys are the
+dataclass fields.
 """
 
 from __future__ import annotations
@@ -28,9 +29,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from pickplace.config import SceneConfig, from_mapping
 from pickplace.control import ControlConfig
 from pickplace.errors import ConfigError
+from pickplace.faults import FaultConfig, apply_model_faults
 from pickplace.ik import IKConfig
 from pickplace.machine import MachineConfig, MachineOutcome, Phase, PickPlaceMachine, SegmentPlan
 from pickplace.model import build
@@ -52,6 +56,7 @@ class EpisodeConfig:
         planner: RRT* settings (the seed is replaced by the episode's).
         timing: TOPP-RA limits.
         ik: IK settings.
+        faults: Faults injected on purpose (none by default).
     """
 
     scene: SceneConfig = field(default_factory=SceneConfig)
@@ -60,6 +65,7 @@ class EpisodeConfig:
     planner: PlannerConfig = field(default_factory=PlannerConfig)
     timing: TimingConfig = field(default_factory=TimingConfig.ur5e)
     ik: IKConfig = field(default_factory=IKConfig)
+    faults: FaultConfig = field(default_factory=FaultConfig)
 
     def __post_init__(self) -> None:
         for name, cls in _SECTIONS.items():
@@ -107,7 +113,8 @@ class EpisodeConfig:
 
 
 _SECTIONS: dict[str, type] = {"scene": SceneConfig, "machine": MachineConfig, "control": ControlConfig,
-                              "planner": PlannerConfig, "timing": TimingConfig, "ik": IKConfig}
+                              "planner": PlannerConfig, "timing": TimingConfig, "ik": IKConfig,
+                              "faults": FaultConfig}
 
 
 def _plain(value: Any) -> Any:
@@ -155,7 +162,10 @@ class EpisodeResult:
         grasp_margin: Ferrari–Canny margin of that grip.
         slip_max_m: Largest motion of the cube in the tcp frame while held.
         torque_saturation_events: Control steps with a clipped torque.
-        unexpected_contacts: Geom pairs of an unexpected contact (empty unless that was the failure).
+        unexpected_contacts: Geom pairs of every unexpected contact met (recovered from or not).
+        retries: Recoveries used.
+        recoveries: One line per recovery: the failure caught and what was done.
+        measured_cube_mass_kg: The cube's mass as the pads felt it while lifting (``lift_load_n / g``).
         config: The full config the episode ran with.
         telemetry: Per-step samples for plots and video (only when asked for; not serialized).
     """
@@ -190,6 +200,9 @@ class EpisodeResult:
     slip_max_m: float
     torque_saturation_events: int
     unexpected_contacts: tuple[tuple[str, str], ...]
+    retries: int
+    recoveries: tuple[str, ...]
+    measured_cube_mass_kg: float
     config: EpisodeConfig
     telemetry: Telemetry | None = field(default=None, repr=False)
 
@@ -227,11 +240,13 @@ def run_episode(config: EpisodeConfig | None = None, seed: int = 0, *, record: b
         raise ConfigError("seed", seed, "must be an integer >= 0")
     t0 = time.perf_counter()
     robot = build(config.scene)
+    apply_model_faults(robot, config.faults)
     data = robot.make_data()
     planner = dataclasses.replace(config.planner, seed=seed)
     recorder = TelemetryRecorder(robot, frame_rate_hz, config.scene.goal_pos_m) if record else None
+    noise_rng = np.random.default_rng([seed, 1])  # the sensor-noise stream, independent of the planner's
     machine = PickPlaceMachine(robot, data, config.machine, config.control, planner, config.timing, config.ik,
-                               recorder)
+                               recorder, config.faults, noise_rng)
     t_sim0 = time.perf_counter()
     out = machine.run()
     wall = time.perf_counter() - t0
@@ -282,6 +297,9 @@ def _result(out: MachineOutcome, config: EpisodeConfig, seed: int, wall: float, 
         slip_max_m=out.slip_max_m,
         torque_saturation_events=out.torque_saturation_events,
         unexpected_contacts=tuple(out.unexpected_contacts),
+        retries=len(out.recoveries),  # each recovery (regrasp, replan, payload correction) is one retry
+        recoveries=tuple(out.recoveries),
+        measured_cube_mass_kg=out.lift_load_n / 9.81,
         config=dataclasses.replace(config, planner=planner),
         telemetry=telemetry,
     )

@@ -18,6 +18,7 @@ it into the user-facing :class:`~pickplace.episode.EpisodeResult`.
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import logging
 import math
@@ -31,16 +32,17 @@ import pinocchio as pin
 
 from pickplace import control, gripper
 from pickplace.collision import CollisionChecker, CollisionPolicy
-from pickplace.config import check_range
+from pickplace.config import check_int, check_range
 from pickplace.configurations import GraspConfigurations, solve_grasp_configurations
 from pickplace.control import ControlConfig, Payload
-from pickplace.errors import ConfigError, GraspFailed, PickPlaceError
+from pickplace.errors import ConfigError, GraspFailed, PickPlaceError, UnreachableTarget
+from pickplace.faults import FaultConfig, FaultInjector
 from pickplace.grasp import analyze_grasp
 from pickplace.ik import IKConfig, solve_ik
-from pickplace.kinematics import wrap_to_pi, yaw_of
+from pickplace.kinematics import frame_pose, wrap_to_pi
 from pickplace.model import Robot
 from pickplace.planning import PlannerConfig, plan
-from pickplace.targets import place_targets
+from pickplace.targets import CLEARANCE_M, cube_yaw, place_targets
 from pickplace.telemetry import TelemetryRecorder
 from pickplace.timing import TimingConfig, Trajectory, retime
 
@@ -61,6 +63,7 @@ class Phase(enum.Enum):
     DESCEND_PLACE = "DESCEND_PLACE"
     RELEASE = "RELEASE"
     RETRACT = "RETRACT"
+    RECOVER = "RECOVER"  # only after a recoverable failure: open, back off, re-observe the cube
     DONE = "DONE"
     FAILED = "FAILED"
 
@@ -92,6 +95,23 @@ class UnexpectedContact(PickPlaceError):
         super().__init__(f"unexpected contact at t = {t_s:.3f} s: {names}")
 
 
+class CollisionPredicted(PickPlaceError):
+    """The rest of the running trajectory would collide with the world as it is now (it changed).
+
+    Attributes:
+        pairs: The geom pairs that would collide first.
+    """
+
+    def __init__(self, pairs: list[tuple[str, str]], t_s: float, ahead_s: float) -> None:
+        self.pairs = pairs
+        names = ", ".join(f"{a} <-> {b}" for a, b in pairs) or "unknown geoms"
+        super().__init__(f"collision predicted at t = {t_s:.3f} s, {ahead_s:.2f} s ahead: {names}")
+
+
+class CubeMoved(PickPlaceError):
+    """The resting cube is no longer where it was observed (it was pushed, or knocked)."""
+
+
 @dataclass(frozen=True)
 class MachineConfig:
     """Tolerances, timeouts and motion choices of the state machine (SI units).
@@ -113,6 +133,10 @@ class MachineConfig:
         poll_s: Step of the loops that wait for the gripper (s).
         stable_after_release_s: After DONE, the simulation continues until this long after the release, and
             the cube's position then is reported (s).
+        max_retries: Recoveries allowed per episode (regrasp, re-pick, replan); 0 turns recovery off.
+        predict_period_s: While a trajectory runs, the rest of it is checked against the world as it is now
+            this often (s); a predicted collision stops the arm and replans.
+        cube_settle_timeout_s: During a recovery, time allowed for the released cube to come to rest (s).
     """
 
     planning_margin_m: float = 0.01
@@ -130,6 +154,9 @@ class MachineConfig:
     settle_s: float = 0.02
     poll_s: float = 0.01
     stable_after_release_s: float = 1.0
+    max_retries: int = 3
+    predict_period_s: float = 0.05
+    cube_settle_timeout_s: float = 2.0
 
     def __post_init__(self) -> None:
         limits = {
@@ -140,10 +167,12 @@ class MachineConfig:
             "place_tolerance_xy_m": (1e-4, 0.1, "m"),
             "place_tolerance_z_m": (1e-4, 0.1, "m"), "place_tolerance_yaw_rad": (1e-4, math.pi / 4, "rad"),
             "retract_height_m": (0.0, 0.5, "m"), "settle_s": (0.0, 5.0, "s"), "poll_s": (0.001, 0.1, "s"),
-            "stable_after_release_s": (0.0, 10.0, "s"),
+            "stable_after_release_s": (0.0, 10.0, "s"), "predict_period_s": (0.001, 1.0, "s"),
+            "cube_settle_timeout_s": (0.01, 10.0, "s"),
         }
         for name, (lo, hi, unit) in limits.items():
             object.__setattr__(self, name, check_range(f"machine.{name}", getattr(self, name), lo, hi, unit=unit))
+        object.__setattr__(self, "max_retries", check_int("machine.max_retries", self.max_retries, 0, 20))
 
 
 @dataclass(frozen=True)
@@ -190,9 +219,9 @@ class MachineOutcome:
         torque_saturation_events: Control steps with a clipped torque, all phases.
         grip_force_n: Sum of the pads' normal forces when the grip settled (N).
         lift_grip_force_n: Mean sum of the pads' normal forces while the cube is lifted off the table (N).
-        lift_load_n: Weight the pads carry while the cube is lifted (N): the mean of their vertical force on
-            the cube minus the cube's mass times its measured vertical acceleration. It equals m g when the
-            pads alone hold the cube; anything else touching it, or a model/physics mismatch, shows.
+        lift_load_n: Weight of the cube as the pads measure it while lifting (N): ``g * sum(F_z) / sum(g + a_z)``
+            over the airborne steps, with F_z the pads' vertical force on the cube and a_z its measured
+            acceleration. It equals m g when the pads alone hold the cube.
         force_closure: Whether the settled grip was force closure (6D wrench test on the actual contacts).
         grasp_margin: Ferrari–Canny margin of that grip (normalized wrench units).
         slip_max_m: Largest motion of the cube in the tcp frame while it was held (m).
@@ -201,6 +230,7 @@ class MachineOutcome:
         final_place_error_xy_m: Horizontal error ``stable_after_release_s`` after the release (m).
         unexpected_contacts: Geom pairs of unexpected contacts seen (empty on success).
         wall_plan_time_s: Wall time spent planning, IK and retiming (s).
+        recoveries: One line per recovery: the failure that was caught and what was done about it.
     """
 
     phase: Phase = Phase.IDLE
@@ -227,7 +257,14 @@ class MachineOutcome:
     final_place_error_xy_m: float = math.nan
     unexpected_contacts: list[tuple[str, str]] = field(default_factory=list)
     wall_plan_time_s: float = 0.0
+    recoveries: list[str] = field(default_factory=list)
 
+
+#: Phases whose grasp failures are recovered by letting go and grasping again.
+_GRASP_PHASES = (Phase.CLOSE, Phase.LIFT, Phase.PLAN_TRANSPORT, Phase.EXEC_TRANSPORT, Phase.DESCEND_PLACE)
+#: Where to go back to when a collision is predicted or met while a trajectory runs.
+_REPLAN = {Phase.EXEC_APPROACH: Phase.PLAN_APPROACH, Phase.EXEC_TRANSPORT: Phase.PLAN_TRANSPORT,
+           Phase.RETRACT: Phase.RETRACT}
 
 # Contact classes of the simulation's geoms, for the per-step contact monitor.
 _ARM, _GRIPPER, _PAD, _CUBE, _TABLE, _ENV = range(6)
@@ -236,10 +273,15 @@ _ARM, _GRIPPER, _PAD, _CUBE, _TABLE, _ENV = range(6)
 class _Monitor:
     """The per-step checks: the episode clock, telemetry, unexpected contacts and slip."""
 
-    def __init__(self, robot: Robot, recorder: TelemetryRecorder | None, slip_tolerance_m: float) -> None:
+    def __init__(self, robot: Robot, recorder: TelemetryRecorder | None, slip_tolerance_m: float,
+                 injector: FaultInjector | None = None) -> None:
         m, h = robot.mj, robot.handles
         self.robot = robot
         self.recorder = recorder
+        self.injector = injector
+        self.predictor: Callable[[mujoco.MjData, float], None] | None = None  # set while a trajectory runs
+        self.predict_every = 50
+        self._steps = 0
         self.dt = float(m.opt.timestep)
         self.t = 0.0
         self.phase = Phase.IDLE
@@ -255,6 +297,9 @@ class _Monitor:
         self.allow_hand_cube = False  # gripper/pads touching the cube
         self.allow_cube_table = True
         self.holding = False  # slip is checked
+        self.tolerate_contacts = False  # backing off a collision: contacts are expected until clear
+        self.watch_cube_at: np.ndarray | None = None  # where the resting cube was observed (m)
+        self.watch_tolerance_m = 0.005
         self._p_tcp_cube0 = np.zeros(3)
         self.slip_max_m = 0.0
         self.slip_now_m = 0.0
@@ -282,7 +327,7 @@ class _Monitor:
         self.t += self.dt
         if self.recorder is not None:
             self.recorder.record(d, self.t, self.phase.value)
-        if d.ncon:
+        if d.ncon and not self.tolerate_contacts:
             geoms = d.contact.geom[: d.ncon]
             classes = self.cls[geoms]
             bad = [(int(g[0]), int(g[1])) for g, c in zip(geoms, classes, strict=True)
@@ -299,6 +344,16 @@ class _Monitor:
             if slip > self.slip_tolerance_m:
                 raise GraspFailed(f"the cube slipped {slip * 1e3:.2f} mm in the grip at t = {self.t:.3f} s "
                                   f"(tolerance {self.slip_tolerance_m * 1e3:.2f} mm)")
+        if self.watch_cube_at is not None:
+            moved = float(np.linalg.norm(d.xpos[self.robot.handles.cube_body] - self.watch_cube_at))
+            if moved > self.watch_tolerance_m:
+                self.watch_cube_at = None
+                raise CubeMoved(f"the cube moved {moved * 1e3:.1f} mm from where it was observed (t = {self.t:.3f} s)")
+        self._steps += 1
+        if self.predictor is not None and self._steps % self.predict_every == 0:
+            self.predictor(d, self.t)
+        if self.injector is not None:
+            self.injector.step(d, self.phase.value, self.t)
 
 
 class PickPlaceMachine:
@@ -313,6 +368,9 @@ class PickPlaceMachine:
         timing: TOPP-RA limits.
         ik: IK settings.
         recorder: Optional telemetry (plots, video).
+        faults: Faults to inject (the model faults must already be applied, see
+            :func:`pickplace.faults.apply_model_faults`).
+        rng: Seeded generator for the sensor noise fault.
     """
 
     def __init__(
@@ -325,11 +383,21 @@ class PickPlaceMachine:
         timing: TimingConfig,
         ik: IKConfig,
         recorder: TelemetryRecorder | None = None,
+        faults: FaultConfig | None = None,
+        rng: np.random.Generator | None = None,
     ) -> None:
         self.robot, self.d = robot, data
         self.cfg, self.ctrl, self.planner, self.timing, self.ik = machine, control_config, planner, timing, ik
         self.recorder = recorder
-        self.monitor = _Monitor(robot, recorder, machine.slip_tolerance_m)
+        self.faults = faults if faults is not None else FaultConfig()
+        self.injector = FaultInjector(robot, self.faults)
+        rng = rng if rng is not None else np.random.default_rng(0)
+        self.noise = control.JointNoise(self.faults.joint_noise_rad, rng) if self.faults.joint_noise_rad > 0 else None
+        self.monitor = _Monitor(robot, recorder, machine.slip_tolerance_m, self.injector)
+        self.monitor.predict_every = max(1, round(machine.predict_period_s / float(robot.mj.opt.timestep)))
+        self.retries = 0
+        self._segment_checker: CollisionChecker | None = None
+        self._traj_t0 = 0.0
         self.out = MachineOutcome()
         self.configs: GraspConfigurations | None = None
         self._trajectory: Trajectory | None = None
@@ -362,7 +430,8 @@ class PickPlaceMachine:
         self.out.torque_saturation_events += rec.saturation_events
 
     def _hold(self, q: np.ndarray, duration_s: float) -> control.TrackingRecord:
-        rec = control.hold(self.robot, self.d, q, duration_s, self.ctrl, payload=self._payload, hook=self.monitor)
+        rec = control.hold(self.robot, self.d, q, duration_s, self.ctrl, payload=self._payload, hook=self.monitor,
+                           noise=self.noise)
         self._count(rec)
         return rec
 
@@ -377,22 +446,49 @@ class PickPlaceMachine:
         margin = self.cfg.planning_margin_m
         res = plan(checker_at(margin), self.q, q_goal, self.robot.arm_lower, self.robot.arm_upper, self.planner)
         t1 = time.perf_counter()
-        traj = retime(np.asarray(res.path), self.timing, checker_at(margin / 2).all_valid)
+        accept = checker_at(margin / 2)
+        traj = retime(np.asarray(res.path), self.timing, accept.all_valid)
+        self._segment_checker = accept
         t2 = time.perf_counter()
         self.out.wall_plan_time_s += t2 - t0
         self.out.segments.append(SegmentPlan(name, t1 - t0, t2 - t1, len(res.path_raw), len(res.path), res.cost_rad,
                                              traj.duration_s, res.status.value))
         self._trajectory = traj
 
+    def _predict(self, t_start: float) -> Callable[[mujoco.MjData, float], None]:
+        """A check of the rest of the running trajectory against the world as it is now."""
+        traj, checker = self._trajectory, self._segment_checker
+        assert traj is not None and checker is not None
+
+        def predictor(d: mujoco.MjData, t: float) -> None:
+            ts = np.arange(t - t_start, traj.duration_s, 0.01)
+            if ts.size == 0:
+                return
+            checker.set_world(d)
+            qs, _, _ = traj.sample_many(ts)
+            if not checker.all_valid(qs):
+                valid = checker.are_valid(qs)
+                k = int(np.argmin(valid))
+                raise CollisionPredicted(checker.colliding_pairs(qs[k]), t, float(ts[k] - ts[0]))
+
+        return predictor
+
     def _free(self, margin_m: float) -> CollisionChecker:
-        """A checker for the empty hand, with the world (the cube) as it is now."""
-        return CollisionChecker(self.robot, CollisionPolicy(margin_m=margin_m), world_qpos=self.d.qpos.copy())
+        """A checker for the empty hand, with the world (the cube, anything that moved) as it is now."""
+        checker = CollisionChecker(self.robot, CollisionPolicy(margin_m=margin_m))
+        checker.set_world(self.d)
+        return checker
 
     def _execute(self, phase: Phase) -> None:
         assert self._trajectory is not None
-        t_start = self.monitor.t
-        rec = control.track(self.robot, self.d, self._trajectory, self.ctrl, payload=self._payload,
-                            hook=self.monitor, settle_s=self.cfg.settle_s)
+        t_start = self._traj_t0 = self.monitor.t
+        if self._segment_checker is not None and self.cfg.max_retries > 0:
+            self.monitor.predictor = self._predict(t_start)
+        try:
+            rec = control.track(self.robot, self.d, self._trajectory, self.ctrl, payload=self._payload,
+                                hook=self.monitor, settle_s=self.cfg.settle_s, noise=self.noise)
+        finally:
+            self.monitor.predictor = None
         self._count(rec)
         err = np.abs(rec.q - rec.q_ref)
         self._track_errors.append(err)
@@ -404,7 +500,7 @@ class PickPlaceMachine:
 
     def _vertical(self, phase: Phase, target_z: float) -> control.CartesianRecord:
         rec = control.move_vertical(self.robot, self.d, target_z, self.ctrl, payload=self._payload,
-                                    hook=self.monitor)
+                                    hook=self.monitor, noise=self.noise)
         self._count(rec)
         if not rec.reached:
             raise PhaseFailed(phase, f"the tcp stopped {rec.final_height_error_m * 1e3:.2f} mm from its target "
@@ -417,8 +513,9 @@ class PickPlaceMachine:
         t0 = time.perf_counter()
         mujoco.mj_forward(self.robot.mj, self.d)
         cube = self._cube_pose()
-        configs = solve_grasp_configurations(self.robot, self.ik, cube.translation, yaw_of(cube.rotation))
+        configs = solve_grasp_configurations(self.robot, self.ik, cube.translation, cube_yaw(cube.rotation))
         self.robot.scene.check_goal_on_table()
+        self.monitor.watch_cube_at = cube.translation.copy()
         self.configs = configs
         self._note_ik(*configs.results())
         self.out.wall_plan_time_s += time.perf_counter() - t0
@@ -445,6 +542,7 @@ class PickPlaceMachine:
 
     def _close(self) -> Phase:
         robot, d, cfg = self.robot, self.d, self.cfg
+        self.monitor.watch_cube_at = None  # the pads move it now
         self.monitor.allow_hand_cube = True
         gripper.command(robot, d, True)
         q_hold = self.q
@@ -476,44 +574,73 @@ class PickPlaceMachine:
         return Phase.LIFT
 
     def _lift(self) -> Phase:
-        assert self.configs is not None
+        """Lift to the pregrasp height, weighing the cube on the way (the pads' force over its acceleration).
+
+        If the arm cannot hold the lift height because the cube is heavier (or lighter) than believed, the
+        payload compensation is corrected with the measured mass and the move is repeated once.
+        """
+        assert self.configs is not None and self._payload is not None
         target_z = float(self.configs.targets.pregrasp.translation[2])
         z_cube0 = float(self._cube_pose().translation[2])
         self.monitor.allow_cube_table = True  # until it leaves the table
         forces: list[float] = []
-        loads: list[float] = []
-        monitor = self.monitor
-        mass = float(self.robot.mj.body_mass[self.robot.handles.cube_body])
-        cube_az = self.robot.handles.cube_dof + 2  # the free joint's world z acceleration
+        f_z: list[float] = []
+        g_plus_a: list[float] = []
+        monitor, h = self.monitor, self.robot.handles
+        g = float(-self.robot.mj.opt.gravity[2])
+        cube_az = h.cube_dof + 2  # the free joint's world z acceleration
 
         def hook(d: mujoco.MjData) -> None:
             monitor(d)
-            if monitor.allow_cube_table and d.xpos[self.robot.handles.cube_body][2] > z_cube0 + 0.003:
+            if monitor.allow_cube_table and d.xpos[h.cube_body][2] > z_cube0 + 0.003:
                 monitor.allow_cube_table = False  # airborne: touching the table again is a failure
             if not monitor.allow_cube_table:  # airborne: only the pads (and gravity) act on the cube
                 _, f = gripper.pad_contacts(self.robot, d)
                 forces.append(float(gripper.pad_forces(self.robot, d).sum()))
-                loads.append(float(f[2]) - mass * float(d.qacc[cube_az]))
+                f_z.append(float(f[2]))
+                g_plus_a.append(g + float(d.qacc[cube_az]))
 
-        rec = control.move_vertical(self.robot, self.d, target_z, self.ctrl, payload=self._payload, hook=hook)
+        def measured_mass() -> float:
+            return float(np.sum(f_z) / np.sum(g_plus_a)) if f_z else math.nan
+
+        try:
+            rec = control.move_vertical(self.robot, self.d, target_z, self.ctrl, payload=self._payload, hook=hook,
+                                        noise=self.noise, raise_on_timeout=False)
+        finally:  # a slip aborts the move: still report what the pads felt
+            mass = measured_mass()
+            self.out.lift_load_n = mass * g if math.isfinite(mass) else 0.0
         self._count(rec)
+        if (not rec.reached and math.isfinite(mass) and abs(mass / self._payload.mass_kg - 1.0) > 0.2
+                and self.retries < self.cfg.max_retries):
+            self.retries += 1
+            note = (f"LIFT: the cube weighs {mass:.3f} kg, not {self._payload.mass_kg:.3f} kg (the arm stopped "
+                    f"{rec.final_height_error_m * 1e3:.2f} mm short) -> payload compensation corrected")
+            self.out.recoveries.append(note)
+            log.info("recovery: %s", note)
+            self._payload = dataclasses.replace(self._payload, mass_kg=mass)
+            rec = control.move_vertical(self.robot, self.d, target_z, self.ctrl, payload=self._payload, hook=hook,
+                                        noise=self.noise, raise_on_timeout=False)
+            self._count(rec)
+            mass = measured_mass()
+        self.out.lift_grip_force_n = float(np.mean(forces)) if forces else 0.0
+        self.out.lift_load_n = mass * g if math.isfinite(mass) else 0.0
         if not rec.reached:
             raise PhaseFailed(Phase.LIFT, f"the tcp stopped {rec.final_height_error_m * 1e3:.2f} mm from the lift "
-                                          "height")
+                                          f"height (cube weighed {mass:.3f} kg)")
         self.monitor.allow_cube_table = False
         rise = float(self._cube_pose().translation[2]) - z_cube0
         lifted = target_z - float(self.configs.targets.grasp.translation[2])
         if abs(rise - lifted) > self.cfg.slip_tolerance_m:
             raise GraspFailed(f"the cube rose {rise * 1e3:.1f} mm while the tcp rose {lifted * 1e3:.1f} mm")
-        self.out.lift_grip_force_n = float(np.mean(forces)) if forces else 0.0
-        self.out.lift_load_n = float(np.mean(loads)) if loads else 0.0
         return Phase.PLAN_TRANSPORT
 
     def _carrying(self, margin_m: float, allow_cube_table: bool) -> CollisionChecker:
         assert self.configs is not None
         policy = CollisionPolicy(margin_m=margin_m, cube_held=True, allow_cube_table=allow_cube_table,
                                  finger_m=gripper.finger_travel(self.robot, self.d))
-        return CollisionChecker(self.robot, policy, world_qpos=self.d.qpos.copy(), T_tcp_cube=self._T_tcp_cube)
+        checker = CollisionChecker(self.robot, policy, T_tcp_cube=self._T_tcp_cube)
+        checker.set_world(self.d)
+        return checker
 
     def _plan_transport(self) -> Phase:
         """Re-target the place from the cube's measured pose in the hand, then plan to above the goal."""
@@ -533,6 +660,11 @@ class PickPlaceMachine:
         return Phase.EXEC_TRANSPORT
 
     def _exec_transport(self) -> Phase:
+        assert self._trajectory is not None
+        if self.faults.intruder and not self.injector.intruder_placed:  # it appears once the path is planned
+            T_end = frame_pose(self.robot.pin, self.robot.pin.createData(),
+                               self.robot.pin_q(self._trajectory.waypoints[-1]), self.robot.pin_tcp_frame)
+            self.injector.place_intruder(self.d, self._tcp_pose().translation, T_end.translation)
         self._execute(Phase.EXEC_TRANSPORT)
         return Phase.DESCEND_PLACE
 
@@ -548,6 +680,7 @@ class PickPlaceMachine:
         self.out.wall_plan_time_s += time.perf_counter() - t0
         if float(np.max(np.abs(aim.q - self.q))) > 1e-5:
             self._trajectory = retime(np.vstack([self.q, aim.q]), self.timing)
+            self._segment_checker = None  # a sub-millimetre correction: nothing to predict
             self._execute(Phase.DESCEND_PLACE)
         monitor = self.monitor
         z_table_touch = self.robot.scene.goal_pos_m[2] + 0.003
@@ -558,7 +691,7 @@ class PickPlaceMachine:
             monitor(d)
 
         rec = control.move_vertical(self.robot, self.d, float(place.translation[2]), self.ctrl,
-                                    payload=self._payload, hook=hook)
+                                    payload=self._payload, hook=hook, noise=self.noise)
         self._count(rec)
         if not rec.reached:
             raise PhaseFailed(Phase.DESCEND_PLACE, f"the tcp stopped {rec.final_height_error_m * 1e3:.2f} mm from "
@@ -608,7 +741,7 @@ class PickPlaceMachine:
         err = cube.translation - scene.goal_pos_m
         self.out.place_error_xy_m = float(np.hypot(err[0], err[1]))
         self.out.place_error_z_m = float(err[2])
-        dyaw = float(wrap_to_pi(yaw_of(cube.rotation) - scene.goal_yaw_rad))
+        dyaw = float(wrap_to_pi(cube_yaw(cube.rotation) - scene.goal_yaw_rad))
         self.out.place_error_yaw_rad = float(wrap_to_pi(4 * dyaw) / 4)  # the cube looks the same every 90 deg
 
     def _retract(self) -> Phase:
@@ -626,7 +759,7 @@ class PickPlaceMachine:
             Phase.EXEC_APPROACH: self._exec_approach, Phase.DESCEND: self._descend, Phase.CLOSE: self._close,
             Phase.LIFT: self._lift, Phase.PLAN_TRANSPORT: self._plan_transport,
             Phase.EXEC_TRANSPORT: self._exec_transport, Phase.DESCEND_PLACE: self._descend_place,
-            Phase.RELEASE: self._release, Phase.RETRACT: self._retract,
+            Phase.RELEASE: self._release, Phase.RETRACT: self._retract, Phase.RECOVER: self._recover,
         }
         phase = Phase.IDLE
         out = self.out
@@ -638,10 +771,14 @@ class PickPlaceMachine:
             except ConfigError:
                 raise  # bad input is the caller's error, not a failed episode
             except PickPlaceError as exc:
-                out.phase_durations_s[phase.value] = self.monitor.t - t0
-                self._fail(phase, exc)
-                break
-            out.phase_durations_s[phase.value] = self.monitor.t - t0
+                self._spent(phase, t0)
+                recovery = self._recovery(phase, exc)
+                if recovery is None:
+                    self._fail(phase, exc)
+                    break
+                phase = recovery
+                continue
+            self._spent(phase, t0)
             log.debug("%s done in %.3f s (t = %.3f s)", phase.value, self.monitor.t - t0, self.monitor.t)
             phase = nxt
         else:
@@ -654,6 +791,100 @@ class PickPlaceMachine:
             out.tracking_error_max_rad = float(errs.max())
             out.tracking_error_rms_rad = float(np.sqrt(np.mean(errs**2)))
         return out
+
+    def _spent(self, phase: Phase, t0: float) -> None:
+        durations = self.out.phase_durations_s
+        durations[phase.value] = durations.get(phase.value, 0.0) + self.monitor.t - t0
+
+    # ------------------------------------------------------------------ recovery
+    def _recovery(self, phase: Phase, exc: PickPlaceError) -> Phase | None:
+        """The phase to continue with after ``exc`` in ``phase``, or None if it cannot be recovered."""
+        if isinstance(exc, UnexpectedContact):
+            self.out.unexpected_contacts.extend(p for p in exc.pairs if p not in self.out.unexpected_contacts)
+        if self.retries >= self.cfg.max_retries:
+            return None
+        if isinstance(exc, CollisionPredicted) and phase in _REPLAN:
+            action, nxt = "stop and replan", _REPLAN[phase]
+            self._hold(self.q, 0.15)  # brake before planning from where the arm stands
+        elif isinstance(exc, UnexpectedContact) and phase in _REPLAN and not self._touches_cube(exc):
+            action, nxt = "back off along the executed path and replan", _REPLAN[phase]
+            self._back_off()
+        elif isinstance(exc, GraspFailed) and phase in _GRASP_PHASES:
+            action, nxt = "open, back off, re-observe the cube and grasp again", Phase.RECOVER
+        elif isinstance(exc, CubeMoved) and phase in (Phase.EXEC_APPROACH, Phase.DESCEND):
+            action, nxt = "stop, wait for the cube to rest, observe it again and approach again", Phase.RECOVER
+        elif phase is Phase.DESCEND and (isinstance(exc, PhaseFailed) or
+                                         (isinstance(exc, UnexpectedContact) and self._touches_cube(exc))):
+            action, nxt = "back off, re-observe the cube and approach again", Phase.RECOVER
+        else:
+            return None
+        self.retries += 1
+        note = f"{phase.value}: {type(exc).__name__}: {exc} -> {action}"
+        self.out.recoveries.append(note)
+        log.info("recovery %d/%d: %s", self.retries, self.cfg.max_retries, note)
+        return nxt
+
+    @staticmethod
+    def _touches_cube(exc: UnexpectedContact) -> bool:
+        return all("cube" in pair for pair in exc.pairs)
+
+    def _back_off(self) -> None:
+        """Retrace the last 0.3 s of the running trajectory (collisions tolerated), then stand still."""
+        traj = self._trajectory
+        if traj is None:
+            return
+        t_in = self.monitor.t - self._traj_t0
+        q_back = traj.sample(max(0.0, min(t_in, traj.duration_s) - 0.3))[0]
+        self.monitor.tolerate_contacts = True
+        try:
+            path = np.vstack([self.q, q_back])
+            if float(np.max(np.abs(path[1] - path[0]))) > 1e-6:
+                rec = control.track(self.robot, self.d, retime(path, self.timing), self.ctrl, payload=self._payload,
+                                    hook=self.monitor, settle_s=0.1, noise=self.noise)
+                self._count(rec)
+        finally:
+            self.monitor.tolerate_contacts = False
+
+    def _recover(self) -> Phase:
+        """Let go, back off upwards, wait for the cube to rest, and observe it again for a new approach."""
+        robot, d, cfg = self.robot, self.d, self.cfg
+        scene = robot.scene
+        self.monitor.holding = False
+        self.monitor.watch_cube_at = None
+        self.monitor.allow_hand_cube = True
+        self.monitor.allow_cube_table = True
+        self._payload = None
+        gripper.command(robot, d, False)
+        self._hold(self.q, 0.15)
+        z_safe = scene.table_height_m + scene.cube_size_m + CLEARANCE_M
+        if float(self._tcp_pose().translation[2]) < z_safe:
+            self._vertical(Phase.RECOVER, z_safe)
+        waited = 0.0
+        while float(np.linalg.norm(d.qvel[robot.handles.cube_dof: robot.handles.cube_dof + 6])) > 0.01:
+            if waited >= cfg.cube_settle_timeout_s:
+                raise PhaseFailed(Phase.RECOVER, f"the cube did not come to rest within {waited:.1f} s")
+            self._hold(self.q, cfg.poll_s)
+            waited += cfg.poll_s
+        self.monitor.allow_hand_cube = False
+        cube = self._cube_pose()
+        resting_z = scene.table_height_m + scene.cube_size_m / 2
+        tilt = float(np.arccos(np.clip(np.max(np.abs(cube.rotation[2])), -1.0, 1.0)))  # a face up: 0
+        if abs(cube.translation[2] - resting_z) > 0.005 or tilt > 0.1:
+            raise PhaseFailed(Phase.RECOVER, f"the cube is not resting on the table: centre at z = "
+                                             f"{cube.translation[2]:.3f} m (expected {resting_z:.3f} m), tilted "
+                                             f"{tilt:.2f} rad")
+        t0 = time.perf_counter()
+        try:
+            self.configs = solve_grasp_configurations(robot, self.ik, cube.translation, cube_yaw(cube.rotation))
+        except UnreachableTarget as exc:
+            where = f"({cube.translation[0]:.3f}, {cube.translation[1]:.3f}) m"
+            raise PhaseFailed(Phase.RECOVER, f"the cube now rests at {where}, out of reach: {exc}") from exc
+        finally:
+            self.out.wall_plan_time_s += time.perf_counter() - t0
+        self.monitor.watch_cube_at = cube.translation.copy()
+        log.info("recovery: the cube was observed again at (%.4f, %.4f) m, yaw %.3f rad", *cube.translation[:2],
+                 cube_yaw(cube.rotation))
+        return Phase.PLAN_APPROACH
 
     def _fail(self, phase: Phase, exc: PickPlaceError) -> None:
         out = self.out
@@ -681,5 +912,14 @@ class PickPlaceMachine:
         self.out.final_place_error_xy_m = float(np.hypot(err[0], err[1]))
 
 
-__all__ = ["MachineConfig", "MachineOutcome", "Phase", "PhaseFailed", "PickPlaceMachine", "SegmentPlan",
-           "UnexpectedContact"]
+__all__ = [
+    "CollisionPredicted",
+    "CubeMoved",
+    "MachineConfig",
+    "MachineOutcome",
+    "Phase",
+    "PhaseFailed",
+    "PickPlaceMachine",
+    "SegmentPlan",
+    "UnexpectedContact",
+]

@@ -77,6 +77,14 @@ def _quat_yaw(yaw: float) -> list[float]:
     return [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
 
 
+#: Name of the mocap body (and geom) of the obstacle that fault injection makes appear.
+INTRUDER = "intruder"
+#: Where the intruder waits, far from everything (m).
+INTRUDER_PARKED_POS = (5.0, 5.0, 5.0)
+#: Half sizes of the intruder box (m): thin along x, 0.2 m across, 0.25 m tall.
+INTRUDER_HALF_SIZE_M = (0.02, 0.10, 0.125)
+
+
 def scene_spec(scene: SceneConfig) -> mujoco.MjSpec:
     """The full scene for MuJoCo: world, robot, table, cube, goal marker and optional obstacle.
 
@@ -122,6 +130,11 @@ def scene_spec(scene: SceneConfig) -> mujoco.MjSpec:
     goal.add_geom(name="goal_marker", type=mujoco.mjtGeom.mjGEOM_BOX, size=[h, h, 0.0005],
                   contype=0, conaffinity=0, group=1, material="goal")
     goal.add_site(name="goal", size=[0.003, 0, 0], rgba=[0, 1, 0, 1], group=4)
+
+    # An obstacle parked far away (a mocap body): fault injection moves it into the robot's path mid-episode.
+    intruder = spec.worldbody.add_body(name=INTRUDER, pos=list(INTRUDER_PARKED_POS), mocap=True)
+    intruder.add_geom(name=INTRUDER, type=mujoco.mjtGeom.mjGEOM_BOX, size=list(INTRUDER_HALF_SIZE_M),
+                      material="obstacle")
 
     if scene.obstacle:
         ox, oy = obstacle_xy(scene)

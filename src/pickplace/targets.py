@@ -37,6 +37,18 @@ def face_yaw(object_yaw: float, reference_yaw: float) -> float:
     return float(wrap_to_pi(object_yaw + k * np.pi / 2))
 
 
+def cube_yaw(R_world_cube: np.ndarray) -> float:
+    """Yaw (rad) of a cube resting on any of its faces, defined modulo pi/2.
+
+    The cube's own z axis need not point up (a dropped cube lands on any face): the yaw is that of the
+    first of its axes that is not the (nearly) vertical one.
+    """
+    R = np.asarray(R_world_cube, dtype=float)
+    up = int(np.argmax(np.abs(R[2])))
+    side = R[:, (up + 1) % 3]
+    return float(np.arctan2(side[1], side[0]))
+
+
 def _bearing(xy: np.ndarray) -> float:
     return float(np.arctan2(xy[1], xy[0]))
 
@@ -144,7 +156,7 @@ def place_targets(
     offset_world = T_world_cube.translation - T_world_tcp.translation
     offset_tcp = rot_z(-tcp_yaw)[:2, :2] @ offset_world[:2]  # horizontal offset in the tcp's yaw frame
     below = -offset_world[2]  # tcp height above the cube's centre
-    cube_in_hand_yaw = float(wrap_to_pi(yaw_of(T_world_cube.rotation) - tcp_yaw))
+    cube_in_hand_yaw = float(wrap_to_pi(cube_yaw(T_world_cube.rotation) - tcp_yaw))
     place_yaw = face_yaw(scene.goal_yaw_rad - cube_in_hand_yaw, reference_yaw_rad)
     goal = scene.goal_pos_m
     xy = goal[:2] - rot_z(place_yaw)[:2, :2] @ offset_tcp
