@@ -1,0 +1,192 @@
+"""Faults injected on purpose: each is detected in the right phase with the right reason, within a stated time,
+and recovered from where it can be.
+
+Every fault is a real change to the simulation (see :mod:`pickplace.faults`). Each test runs full episodes
+(about 0.5–1 s each): with recovery off (``machine.max_retries = 0``) to check the detection, and with the
+default recovery to check what it achieves. Run with ``-s`` to see the detection times.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import pytest
+
+from pickplace.episode import EpisodeConfig, EpisodeResult, run_episode
+from pickplace.faults import FaultConfig
+from pickplace.machine import MachineConfig
+
+TRANSPORT_PUSH = FaultConfig(transport_push_n=(0.0, 0.0, -40.0), transport_push_start_s=0.2, transport_push_s=0.05)
+PRE_PICK_PUSH = FaultConfig(pre_pick_push_n=(0.0, -2.5), pre_pick_push_s=0.1)
+
+
+def _run(faults: FaultConfig, recovery: bool, seed: int = 0, **scene: object) -> EpisodeResult:
+    config = dataclasses.replace(EpisodeConfig(), faults=faults,
+                                 machine=MachineConfig(max_retries=3 if recovery else 0))
+    if scene:
+        config = config.with_scene(**scene)
+    return run_episode(config, seed, record=True)
+
+
+def _phase_start(r: EpisodeResult, phase: str) -> float:
+    assert r.telemetry is not None
+    return next(a for name, a, _ in r.telemetry.phase_spans() if name == phase)
+
+
+def _report(label: str, r: EpisodeResult, detection_s: float | None = None) -> None:
+    det = f", detected {detection_s * 1e3:.0f} ms after onset" if detection_s is not None else ""
+    outcome = "success" if r.success else f"FAILED in {r.failure_phase} ({r.failure_kind}): {r.failure_reason}"
+    print(f"\n{label}: {outcome}{det}; retries {r.retries}; t = {r.cycle_time_s:.3f} s")
+    for line in r.recoveries:
+        print(f"    recovery: {line}")
+
+
+def test_transport_push_drops_the_cube_detected_and_picked_again() -> None:
+    """A 40 N downward push for 50 ms knocks the cube out of the grip while it is carried."""
+    r = _run(TRANSPORT_PUSH, recovery=False)
+    onset = _phase_start(r, "EXEC_TRANSPORT") + TRANSPORT_PUSH.transport_push_start_s
+    _report("transport push, no recovery", r, r.cycle_time_s - onset)
+    assert not r.success
+    assert (r.failure_phase, r.failure_kind) == ("EXEC_TRANSPORT", "GraspFailed")
+    assert "slipped" in r.failure_reason
+    assert 0.0 < r.cycle_time_s - onset <= 0.1  # detected within 100 ms of the push
+
+    r = _run(TRANSPORT_PUSH, recovery=True)
+    _report("transport push, with recovery", r)
+    assert r.success, r.failure_reason
+    assert r.retries == 1 and r.recoveries[0].startswith("EXEC_TRANSPORT: GraspFailed")
+    assert r.place_error_xy_m <= 1.4e-3 and r.final_place_error_xy_m <= 2e-3
+
+
+def test_cube_pushed_before_the_pick_detected_and_reobserved() -> None:
+    """The cube is pushed away after it was observed: the monitor sees it move, the machine looks again."""
+    r = _run(PRE_PICK_PUSH, recovery=False)
+    onset = _phase_start(r, "EXEC_APPROACH")
+    _report("pre-pick push, no recovery", r, r.cycle_time_s - onset)
+    assert (r.failure_phase, r.failure_kind) == ("EXEC_APPROACH", "CubeMoved")
+    assert "moved" in r.failure_reason
+    assert r.cycle_time_s - onset <= 0.1
+
+    r = _run(PRE_PICK_PUSH, recovery=True)
+    _report("pre-pick push, with recovery", r)
+    assert r.success, r.failure_reason
+    assert r.retries == 1 and "CubeMoved" in r.recoveries[0]
+    assert r.place_error_xy_m <= 1.4e-3
+
+
+def test_slippery_pads_detected_in_lift_and_retries_are_bounded() -> None:
+    """Friction 0.02 (the reference design's slipping cube): detected in LIFT; recovery gives up after 3 tries."""
+    faults = FaultConfig(pad_friction_scale=0.02)
+    r = _run(faults, recovery=False)
+    _report("pad friction x0.02, no recovery", r, r.cycle_time_s - _phase_start(r, "LIFT"))
+    assert (r.failure_phase, r.failure_kind) == ("LIFT", "GraspFailed")
+    assert "slipped" in r.failure_reason
+    assert r.cycle_time_s - _phase_start(r, "LIFT") <= 0.3
+
+    r = _run(faults, recovery=True)
+    _report("pad friction x0.02, with recovery", r)
+    assert not r.success and r.failure_phase == "LIFT"
+    assert r.retries == 3 and all("slipped" in line for line in r.recoveries)  # bounded, each with its reason
+
+
+def test_half_friction_and_sensor_noise_are_tolerated() -> None:
+    r = _run(FaultConfig(pad_friction_scale=0.5, joint_noise_rad=1e-4), recovery=False)
+    _report("pad friction x0.5 and 0.1 mrad joint noise", r)
+    assert r.success, r.failure_reason
+    assert r.place_error_xy_m <= 1.4e-3 and r.tracking_error_max_rad < 5e-3
+
+
+def test_pads_that_do_not_reach_the_cube_fail_the_close() -> None:
+    """The tcp is believed 30 mm further out than it is: the pads close 30 mm above the cube's centre, on air."""
+    r = _run(FaultConfig(tcp_offset_error_m=0.03), recovery=False)
+    _report("tcp offset +30 mm (pads miss the cube)", r, r.phase_durations_s["CLOSE"])
+    assert (r.failure_phase, r.failure_kind) == ("CLOSE", "GraspFailed")
+    assert "pads did not settle on the cube" in r.failure_reason and "finger travel 40.0 mm" in r.failure_reason
+    assert r.phase_durations_s["CLOSE"] <= 1.0 + 1e-9  # the close timeout
+
+
+def test_flipped_tcp_offset_rejected_before_moving() -> None:
+    """The reference design's IK failure: a flipped tcp offset sign. The targets would drive the fingers into
+    the table, so IK rejects them and the episode fails in IDLE naming the geoms, before anything moves."""
+    r = _run(FaultConfig(tcp_offset_error_m=-0.2), recovery=True)
+    _report("flipped tcp offset", r)
+    assert (r.failure_phase, r.failure_kind) == ("IDLE", "UnreachableTarget")
+    assert "table_top" in r.failure_reason and "pad" in r.failure_reason
+    assert r.cycle_time_s == 0.0
+
+
+def test_heavier_cube_is_weighed_and_compensated() -> None:
+    """The cube is 5x heavier than believed: the lift sags 2 mm; the pads weigh it and the payload is fixed."""
+    faults = FaultConfig(cube_mass_scale=5.0)
+    r = _run(faults, recovery=False)
+    _report("cube 5x heavier, no recovery", r)
+    assert (r.failure_phase, r.failure_kind) == ("LIFT", "PhaseFailed")
+    assert "from the lift height" in r.failure_reason and "cube weighed 0.750 kg" in r.failure_reason
+
+    r = _run(faults, recovery=True)
+    _report("cube 5x heavier, with recovery", r)
+    assert r.success, r.failure_reason
+    assert r.measured_cube_mass_kg == pytest.approx(0.75, rel=0.02)
+    assert r.retries == 1 and "weighs 0.750 kg" in r.recoveries[0]
+    assert r.place_error_xy_m <= 1.4e-3
+
+
+def test_cube_too_heavy_for_the_grip_slips_in_lift() -> None:
+    r = _run(FaultConfig(cube_mass_scale=30.0), recovery=False)  # 4.5 kg: beyond the 3 kg the pads hold
+    _report("cube 30x heavier", r)
+    assert (r.failure_phase, r.failure_kind) == ("LIFT", "GraspFailed") and "slipped" in r.failure_reason
+
+
+def test_soft_contacts_detected_as_slip() -> None:
+    """Pads 20x softer (the reference design's soft solref): the cube sags and rocks in the grip; the slip
+    monitor catches it instead of letting it fall quietly."""
+    r = _run(FaultConfig(pad_softness_scale=20.0), recovery=False)
+    _report("pad solref x20", r)
+    assert not r.success and r.failure_kind == "GraspFailed" and "slipped" in r.failure_reason
+    assert r.failure_phase in ("LIFT", "EXEC_TRANSPORT", "DESCEND_PLACE")
+
+
+def test_obstacle_after_planning_predicted_and_replanned() -> None:
+    """A wall appears across the transport path once it is planned. Without recovery the arm runs into it
+    (the contact monitor names the geoms); with recovery the collision is predicted ahead, the arm stops and
+    the machine replans around it."""
+    faults = FaultConfig(intruder=True)
+    r = _run(faults, recovery=False)
+    _report("obstacle appears, no recovery", r)
+    assert (r.failure_phase, r.failure_kind) == ("EXEC_TRANSPORT", "UnexpectedContact")
+    assert any("intruder" in pair for pair in r.unexpected_contacts)
+
+    r = _run(faults, recovery=True)
+    _report("obstacle appears, with recovery", r)
+    assert r.success, r.failure_reason
+    assert r.unexpected_contacts == ()  # stopped before touching it
+    assert r.retries >= 1 and all("CollisionPredicted" in line for line in r.recoveries)
+    assert "intruder" in r.recoveries[0]
+    ahead_s = float(r.recoveries[0].split(" s ahead")[0].rsplit(", ", 1)[1])
+    assert ahead_s >= 0.1  # predicted at least 100 ms before the contact
+    assert r.place_error_xy_m <= 1.4e-3
+
+
+def test_faulted_episodes_are_deterministic() -> None:
+    """Sensor noise and recovery included: the same config and seed give the same result, bit for bit."""
+    faults = FaultConfig(joint_noise_rad=2e-4, transport_push_n=(0.0, 0.0, -40.0), transport_push_s=0.05)
+    config = dataclasses.replace(EpisodeConfig(), faults=faults)
+    a, b = run_episode(config, 5), run_episode(config, 5)
+    wall = {"wall_time_s", "real_time_factor", "plan_time_s", "retime_time_s"}
+    strip = lambda r: json.dumps({k: v for k, v in r.to_dict().items() if k not in wall}, sort_keys=True)  # noqa: E731
+    assert strip(a) == strip(b)
+    assert a.retries == 1
+    c = run_episode(config, 6)
+    assert strip(c) != strip(a)  # the seed matters (noise stream)
+
+
+def test_fault_config_validation_names_the_field() -> None:
+    from pickplace.errors import ConfigError
+
+    for field, value in [("pad_friction_scale", -1.0), ("cube_mass_scale", 0.0), ("transport_push_n", (1.0, 2.0)),
+                         ("joint_noise_rad", float("nan")), ("intruder", "yes")]:
+        with pytest.raises(ConfigError, match=rf"faults\.{field}"):
+            FaultConfig(**{field: value})
+    with pytest.raises(ConfigError, match=r"faults\.bogus"):
+        EpisodeConfig.from_dict({"faults": {"bogus": 1}})
