@@ -191,3 +191,29 @@ def test_bad_input_raises_config_error(call, field: str) -> None:
     with pytest.raises(ConfigError) as info:
         call()
     assert info.value.field == field
+
+
+def test_simulated_face_contacts_that_trip_qhull_are_still_force_closure() -> None:
+    """Eight contacts of a real pinch, as MuJoCo reported them (two 4-point face contacts): qhull's default
+    options reject them with a precision error ("wide merge"); the test joggles and still finds closure."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    n = [0.7125165758653385, 0.701655121997807, -0.00046785828643712714]
+    left = [[0.3290249333035318, 0.1350614092652658, 0.325363379649924],
+            [0.32903183206381564, 0.13507189205863812, 0.3453633750761873],
+            [0.31219337782773565, 0.1521735422546842, 0.3453602188654027],
+            [0.3121864790674518, 0.15216305946131187, 0.3253602234391394]]
+    right = [[0.3580079036839104, 0.16359408428909414, 0.32533250781947315],
+             [0.35801480244419426, 0.16360456708246648, 0.34533250324573644],
+             [0.34117634820811427, 0.18070621727851255, 0.3453293470349519],
+             [0.3411694494478304, 0.18069573448514023, 0.3253293516086886]]
+    mu = 0.5979383791257202
+    contacts = ([Contact(p, n, mu, 0.005) for p in left] + [Contact(p, [-v for v in n], mu, 0.005) for p in right])
+    p_ref = [0.33508632112569087, 0.15789522965323538, 0.3353520053484002]
+    wrenches = grasp_wrenches(contacts, p_ref, 0.020345096318206104)
+    with pytest.raises(QhullError):
+        ConvexHull(wrenches)  # the precision error this test is about
+    result = analyze_grasp(contacts, p_ref, 0.020345096318206104)
+    assert result.force_closure and result.method == "qhull-joggled"
+    assert result.margin == pytest.approx(0.457, abs=0.01)
+    assert origin_in_hull_lp(wrenches)  # the LP agrees

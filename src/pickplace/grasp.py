@@ -235,10 +235,19 @@ def force_closure(wrenches: np.ndarray, n_contacts: int, tol: float = CLOSURE_TO
         return ForceClosureResult(False, 0.0, "rank-deficient", n_contacts)
     try:
         hull = ConvexHull(w)
-    except QhullError:  # flat hull (all points on a hyperplane not through the origin)
-        return ForceClosureResult(False, 0.0, "qhull-error", n_contacts)
+        method = "qhull"
+    except QhullError:
+        # Contacts from a simulator are often nearly coplanar or duplicated (four corners of a face-face
+        # contact share one normal), which can trip qhull's precision checks ("wide merge"). Joggling the
+        # input by ~1e-11 relative is qhull's own remedy; the margin moves by about as much.
+        try:
+            hull = ConvexHull(w, qhull_options="QJ")
+            method = "qhull-joggled"
+        except QhullError:  # truly flat: decide by the linear program, no margin
+            inside = origin_in_hull_lp(w, tol)
+            return ForceClosureResult(inside, 0.0, "lp", n_contacts)
     margin = float(-np.max(hull.equations[:, -1]))
-    return ForceClosureResult(margin > tol, margin, "qhull", n_contacts)
+    return ForceClosureResult(margin > tol, margin, method, n_contacts)
 
 
 def origin_in_hull_lp(wrenches: np.ndarray, tol: float = CLOSURE_TOL) -> bool:
