@@ -41,6 +41,7 @@ from pickplace.grasp import analyze_grasp
 from pickplace.ik import IKConfig, solve_ik
 from pickplace.kinematics import frame_pose, wrap_to_pi
 from pickplace.model import Robot
+from pickplace.monitor import CubeMoved, StepMonitor, UnexpectedContact
 from pickplace.planning import PlannerConfig, plan
 from pickplace.targets import CLEARANCE_M, cube_yaw, place_targets
 from pickplace.telemetry import TelemetryRecorder
@@ -82,19 +83,6 @@ class PhaseFailed(PickPlaceError):
         super().__init__(f"{phase.value}: {reason}")
 
 
-class UnexpectedContact(PickPlaceError):
-    """A contact that the running phase does not allow (the geoms are named).
-
-    Attributes:
-        pairs: The offending geom pairs.
-    """
-
-    def __init__(self, pairs: list[tuple[str, str]], t_s: float) -> None:
-        self.pairs = pairs
-        names = ", ".join(f"{a} <-> {b}" for a, b in pairs)
-        super().__init__(f"unexpected contact at t = {t_s:.3f} s: {names}")
-
-
 class CollisionPredicted(PickPlaceError):
     """The rest of the running trajectory would collide with the world as it is now (it changed).
 
@@ -106,10 +94,6 @@ class CollisionPredicted(PickPlaceError):
         self.pairs = pairs
         names = ", ".join(f"{a} <-> {b}" for a, b in pairs) or "unknown geoms"
         super().__init__(f"collision predicted at t = {t_s:.3f} s, {ahead_s:.2f} s ahead: {names}")
-
-
-class CubeMoved(PickPlaceError):
-    """The resting cube is no longer where it was observed (it was pushed, or knocked)."""
 
 
 @dataclass(frozen=True)
@@ -266,96 +250,6 @@ _GRASP_PHASES = (Phase.CLOSE, Phase.LIFT, Phase.PLAN_TRANSPORT, Phase.EXEC_TRANS
 _REPLAN = {Phase.EXEC_APPROACH: Phase.PLAN_APPROACH, Phase.EXEC_TRANSPORT: Phase.PLAN_TRANSPORT,
            Phase.RETRACT: Phase.RETRACT}
 
-# Contact classes of the simulation's geoms, for the per-step contact monitor.
-_ARM, _GRIPPER, _PAD, _CUBE, _TABLE, _ENV = range(6)
-
-
-class _Monitor:
-    """The per-step checks: the episode clock, telemetry, unexpected contacts and slip."""
-
-    def __init__(self, robot: Robot, recorder: TelemetryRecorder | None, slip_tolerance_m: float,
-                 injector: FaultInjector | None = None) -> None:
-        m, h = robot.mj, robot.handles
-        self.robot = robot
-        self.recorder = recorder
-        self.injector = injector
-        self.predictor: Callable[[mujoco.MjData, float], None] | None = None  # set while a trajectory runs
-        self.predict_every = 50
-        self._steps = 0
-        self.dt = float(m.opt.timestep)
-        self.t = 0.0
-        self.phase = Phase.IDLE
-        self.slip_tolerance_m = slip_tolerance_m
-        table = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "table")
-        cls = np.full(m.ngeom, _ENV)
-        cls[np.isin(m.geom_bodyid, list(h.robot_bodies))] = _ARM
-        cls[np.isin(m.geom_bodyid, list(h.gripper_bodies))] = _GRIPPER
-        cls[h.pad_geoms] = _PAD
-        cls[m.geom_bodyid == table] = _TABLE
-        cls[h.cube_geom] = _CUBE
-        self.cls = cls
-        self.allow_hand_cube = False  # gripper/pads touching the cube
-        self.allow_cube_table = True
-        self.holding = False  # slip is checked
-        self.tolerate_contacts = False  # backing off a collision: contacts are expected until clear
-        self.watch_cube_at: np.ndarray | None = None  # where the resting cube was observed (m)
-        self.watch_tolerance_m = 0.005
-        self._p_tcp_cube0 = np.zeros(3)
-        self.slip_max_m = 0.0
-        self.slip_now_m = 0.0
-
-    def start_holding(self, d: mujoco.MjData) -> None:
-        """Take the cube's current position in the tcp frame as the reference for slip."""
-        self._p_tcp_cube0 = self._p_tcp_cube(d)
-        self.holding = True
-
-    def _p_tcp_cube(self, d: mujoco.MjData) -> np.ndarray:
-        h = self.robot.handles
-        R = d.site_xmat[h.tcp_site].reshape(3, 3)
-        return R.T @ (d.xpos[h.cube_body] - d.site_xpos[h.tcp_site])
-
-    def allowed(self, a: int, b: int) -> bool:
-        """Whether a contact between geom classes a and b is allowed now."""
-        lo, hi = min(a, b), max(a, b)
-        if hi == _CUBE and lo in (_GRIPPER, _PAD):
-            return self.allow_hand_cube
-        if (lo, hi) == (_CUBE, _TABLE):
-            return self.allow_cube_table
-        return False
-
-    def __call__(self, d: mujoco.MjData) -> None:
-        self.t += self.dt
-        if self.recorder is not None:
-            self.recorder.record(d, self.t, self.phase.value)
-        if d.ncon and not self.tolerate_contacts:
-            geoms = d.contact.geom[: d.ncon]
-            classes = self.cls[geoms]
-            bad = [(int(g[0]), int(g[1])) for g, c in zip(geoms, classes, strict=True)
-                   if not self.allowed(int(c[0]), int(c[1]))]
-            if bad:
-                m = self.robot.mj
-                pairs = sorted({tuple(sorted((m.geom(a).name or f"geom{a}", m.geom(b).name or f"geom{b}")))
-                                for a, b in bad})
-                raise UnexpectedContact(pairs, self.t)  # type: ignore[arg-type]
-        if self.holding:
-            slip = float(np.linalg.norm(self._p_tcp_cube(d) - self._p_tcp_cube0))
-            self.slip_now_m = slip
-            self.slip_max_m = max(self.slip_max_m, slip)
-            if slip > self.slip_tolerance_m:
-                raise GraspFailed(f"the cube slipped {slip * 1e3:.2f} mm in the grip at t = {self.t:.3f} s "
-                                  f"(tolerance {self.slip_tolerance_m * 1e3:.2f} mm)")
-        if self.watch_cube_at is not None:
-            moved = float(np.linalg.norm(d.xpos[self.robot.handles.cube_body] - self.watch_cube_at))
-            if moved > self.watch_tolerance_m:
-                self.watch_cube_at = None
-                raise CubeMoved(f"the cube moved {moved * 1e3:.1f} mm from where it was observed (t = {self.t:.3f} s)")
-        self._steps += 1
-        if self.predictor is not None and self._steps % self.predict_every == 0:
-            self.predictor(d, self.t)
-        if self.injector is not None:
-            self.injector.step(d, self.phase.value, self.t)
-
-
 class PickPlaceMachine:
     """Runs one pick and place in a MuJoCo simulation, phase by phase.
 
@@ -393,7 +287,7 @@ class PickPlaceMachine:
         self.injector = FaultInjector(robot, self.faults)
         rng = rng if rng is not None else np.random.default_rng(0)
         self.noise = control.JointNoise(self.faults.joint_noise_rad, rng) if self.faults.joint_noise_rad > 0 else None
-        self.monitor = _Monitor(robot, recorder, machine.slip_tolerance_m, self.injector)
+        self.monitor = StepMonitor(robot, recorder, machine.slip_tolerance_m, self.injector)
         self.monitor.predict_every = max(1, round(machine.predict_period_s / float(robot.mj.opt.timestep)))
         self.retries = 0
         self._segment_checker: CollisionChecker | None = None
@@ -764,7 +658,7 @@ class PickPlaceMachine:
         phase = Phase.IDLE
         out = self.out
         while phase is not Phase.DONE:
-            self.monitor.phase = phase
+            self.monitor.phase = phase.value
             t0 = self.monitor.t
             try:
                 nxt = steps[phase]()
@@ -900,7 +794,7 @@ class PickPlaceMachine:
     def _after_done(self) -> None:
         """Keep simulating at home until ``stable_after_release_s`` after the release; measure the cube."""
         remaining = self._release_t + self.cfg.stable_after_release_s - self.monitor.t
-        self.monitor.phase = Phase.DONE
+        self.monitor.phase = Phase.DONE.value
         try:
             if remaining > 0:
                 self._hold(self.robot.home_q, remaining)
@@ -914,12 +808,10 @@ class PickPlaceMachine:
 
 __all__ = [
     "CollisionPredicted",
-    "CubeMoved",
     "MachineConfig",
     "MachineOutcome",
     "Phase",
     "PhaseFailed",
     "PickPlaceMachine",
     "SegmentPlan",
-    "UnexpectedContact",
 ]
