@@ -22,6 +22,7 @@ from pickplace.config import SceneConfig
 from pickplace.errors import PickPlaceError
 
 if TYPE_CHECKING:
+    from pickplace.campaign import CampaignConfig, CampaignRun
     from pickplace.episode import EpisodeConfig, EpisodeResult
 
 EXIT_FAILURE = 1
@@ -354,6 +355,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("bench_args", nargs=argparse.REMAINDER,
                    help="options of the benchmark (e.g. --json, --quick, --queries N, --budget S, --no-ompl)")
     p.set_defaults(func=_cmd_bench)
+
+    p = sub.add_parser("eval", help="a campaign of randomized episodes on local processes or Ray, persisted and "
+                       "resumable, with its summary")
+    add_episode_options(p)
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="output directory (campaign.json, results.jsonl, summary.json, trials/)")
+    p.add_argument("--trials", type=int, metavar="N",
+                   help="number of trials (default 100; with --resume: the recorded campaign's)")
+    p.add_argument("--workers", type=int, metavar="W",
+                   help="trials at once (default: every core; with --ray ADDRESS: the cluster's CPUs)")
+    p.add_argument("--seed", type=int, metavar="S", help="campaign seed (default 0; with --resume: the recorded one)")
+    p.add_argument("--resume", action="store_true",
+                   help="complete the campaign in --out: run only the trials not recorded yet")
+    p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
+                   help="run on Ray: a local instance, or the cluster at ADDRESS (needs pip install 'pickplace[ray]')")
+    p.add_argument("--timeout", type=float, default=60.0, metavar="S",
+                   help="per-trial wall-clock limit; a trial over it is recorded as failed (default 60 s)")
+    p.add_argument("--no-randomize", action="store_true",
+                   help="run the base config in every trial (only the episode seed varies)")
+    p.add_argument("--json", action="store_true", help="print summary.json instead of the tables")
+    p.set_defaults(func=_cmd_eval)
+
+    p = sub.add_parser("report", help="plots and report.md of a campaign's output directory")
+    p.add_argument("out", metavar="OUT", help="the campaign's output directory (pickplace eval --out)")
+    p.set_defaults(func=_cmd_report)
     return parser
 
 
@@ -361,6 +387,133 @@ def _cmd_bench(args: argparse.Namespace, console: Console) -> int:
     from pickplace.bench import planning
 
     return int(planning.main(list(args.bench_args)))
+
+
+# --------------------------------------------------------------------------- #
+# eval and report (campaigns)
+# --------------------------------------------------------------------------- #
+
+
+def _episode_options_given(args: argparse.Namespace) -> bool:
+    """Whether any option of :func:`add_episode_options` differs from its default."""
+    probe = argparse.ArgumentParser(add_help=False)
+    add_episode_options(probe)
+    return any(getattr(args, dest) != default for dest, default in vars(probe.parse_args([])).items())
+
+
+def campaign_from_args(args: argparse.Namespace) -> CampaignConfig:
+    """The campaign of ``pickplace eval``.
+
+    The base config is built exactly as ``pickplace run`` builds its config (``--config`` TOML, then the scene
+    flags on top); the TOML may also hold a ``[randomization]`` table. With ``--resume`` and no episode
+    option, ``--seed`` or ``--no-randomize``, the campaign recorded in ``OUT/campaign.json`` is resumed.
+    """
+    import tempfile
+
+    from pickplace.campaign import (
+        CAMPAIGN_FILE,
+        CampaignConfig,
+        RandomizationSpec,
+        episode_config_toml,
+        load_campaign,
+        load_campaign_toml,
+    )
+
+    if (args.resume and (Path(args.out) / CAMPAIGN_FILE).exists() and not _episode_options_given(args)
+            and args.seed is None and not args.no_randomize):
+        return load_campaign(args.out, workers=args.workers, timeout_s=args.timeout, trials=args.trials)
+    spec = RandomizationSpec()
+    if args.config:
+        base_file, spec = load_campaign_toml(args.config)
+        # Same flag semantics as `run`: episode_config_from_args on the file without its [randomization] table.
+        with tempfile.TemporaryDirectory() as tmp:
+            stripped = Path(tmp) / Path(args.config).name
+            stripped.write_text(episode_config_toml(base_file), encoding="utf-8")
+            base = episode_config_from_args(argparse.Namespace(**{**vars(args), "config": str(stripped)}))
+    else:
+        base = episode_config_from_args(args)
+    if args.no_randomize:
+        spec = RandomizationSpec.off()
+    return CampaignConfig(base, spec, args.trials if args.trials is not None else 100,
+                          args.seed if args.seed is not None else 0, args.workers, args.timeout)
+
+
+def print_campaign(run: CampaignRun, console: Console, max_commands: int = 20) -> None:
+    """The summary table, the failures grouped by phase and reason, and the reproduce commands."""
+    from rich.markup import escape
+
+    from pickplace.campaign_report import summary_rows
+
+    s = run.summary
+    t = Table(title=escape(f"Campaign {run.out_dir}"))
+    t.add_column("measure")
+    t.add_column("value", justify="right")
+    for measure, value in summary_rows(s):
+        t.add_row(measure, value)
+    rate = f"{run.trials_run / run.elapsed_s:.2f} trials/s" if run.trials_run and run.elapsed_s > 0 else "—"
+    t.add_row("this run: trials / wall time", f"{run.trials_run} in {run.elapsed_s:.1f} s ({rate})")
+    console.print(t)
+    if s.failures:
+        t = Table(title="Failures by phase and reason (numbers as #)")
+        for col in ("phase", "kind", "trials", "reason"):
+            t.add_column(col, justify="right" if col == "trials" else "left")
+        for g in s.failures:
+            t.add_row(escape(g.phase), escape(g.kind), str(g.count), escape(g.reason))
+        console.print(t)
+        console.print("reproduce a failed trial:", highlight=False)
+        for f in s.failed_trials[:max_commands]:
+            console.print(escape(f"  {f.command}    # trial {f.trial}: {f.phase}"), highlight=False, soft_wrap=True)
+        if len(s.failed_trials) > max_commands:
+            console.print(escape(f"  ... {len(s.failed_trials) - max_commands} more in {run.out_dir / 'summary.json'}"),
+                          highlight=False)
+
+
+def _cmd_eval(args: argparse.Namespace, console: Console) -> int:
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    from pickplace.campaign import CampaignProgress, run_campaign
+
+    campaign = campaign_from_args(args)
+    progress = Progress(TextColumn("[bold]eval"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[ok]}"),
+                        TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
+                        console=Console(stderr=True), transient=False)
+    task = progress.add_task("eval", total=campaign.trials, ok="")
+
+    def on_progress(p: CampaignProgress) -> None:
+        rate = f" ({p.successes / p.done:.1%})" if p.done else ""
+        if p.last is None:  # the start, once the output directory is checked; after a resume, the trials
+            progress.start()  # already done must not count in the ETA's speed
+            progress.reset(task, completed=p.done, ok=f"{p.successes} ok{rate}")
+        else:
+            progress.update(task, completed=p.done, ok=f"{p.successes} ok{rate}")
+
+    try:
+        run = run_campaign(campaign, args.out, resume=args.resume, backend="ray" if args.ray is not None else "local",
+                           ray_address=args.ray or None, on_progress=on_progress)
+    finally:
+        progress.stop()
+    if args.json:
+        print(json.dumps(run.summary.to_dict(), indent=2))
+    else:
+        print_campaign(run, console)
+    return 0
+
+
+def _cmd_report(args: argparse.Namespace, console: Console) -> int:
+    from rich.markup import escape
+
+    from pickplace.campaign_report import write_report
+
+    for path in write_report(args.out):
+        console.print(escape(f"wrote {path}"), highlight=False)
+    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
