@@ -100,7 +100,12 @@ _SPEC_FIELDS: dict[str, tuple[float, float, str, str]] = {
     "cube_mass_kg": (1e-3, 5.0, "kg", "absolute"),
     "cube_size_m": (MIN_CUBE_SIZE_M, MAX_CUBE_SIZE_M, "m", "absolute"),
     "cube_friction": (0.05, 5.0, "", "absolute"),
+    "transport_push_n": (0.0, 200.0, "N", "perturbation"),
 }
+#: Duration of a randomized transport push when the base config's faults do not set one (s).
+PUSH_DURATION_S = 0.05
+#: Window, after the transport trajectory starts, in which a randomized push starts (s).
+PUSH_START_S = (0.05, 0.5)
 
 
 @dataclass(frozen=True)
@@ -119,6 +124,9 @@ class RandomizationSpec:
         cube_mass_kg: Cube mass (kg).
         cube_size_m: Cube edge length (m).
         cube_friction: Friction coefficient of every contact with the cube.
+        transport_push_n: Magnitude of a push on the carried cube (N), off by default. Its direction is drawn
+            uniformly on the sphere and its start uniformly in ``PUSH_START_S`` after the transport starts;
+            it lasts the base config's ``faults.transport_push_s``, or ``PUSH_DURATION_S``.
     """
 
     cube_dx_m: Range | None = (-0.05, 0.05)
@@ -130,6 +138,7 @@ class RandomizationSpec:
     cube_mass_kg: Range | None = (0.05, 0.5)
     cube_size_m: Range | None = (0.03, 0.05)
     cube_friction: Range | None = (0.6, 1.5)
+    transport_push_n: Range | None = None
 
     def __post_init__(self) -> None:
         for name, (lo, hi, unit, _) in _SPEC_FIELDS.items():
@@ -178,12 +187,17 @@ class RandomizationSpec:
 
     def sample(self, rng: np.random.Generator) -> dict[str, float]:
         """One draw: randomized field name -> value (the same number of draws whatever is randomized)."""
-        u = rng.random(len(_SPEC_FIELDS))
+        u = rng.random(len(_SPEC_FIELDS) + 3)  # + the push's direction (2) and start (1)
         out: dict[str, float] = {}
         for k, name in enumerate(_SPEC_FIELDS):
             r = getattr(self, name)
             if r is not None:
                 out[name] = float(r[0] + u[k] * (r[1] - r[0]))
+        if self.transport_push_n is not None:
+            a, b, c = u[len(_SPEC_FIELDS):]
+            out["push_azimuth_rad"] = float(2 * math.pi * a)
+            out["push_elevation_rad"] = float(math.asin(2 * b - 1))
+            out["push_start_s"] = float(PUSH_START_S[0] + c * (PUSH_START_S[1] - PUSH_START_S[0]))
         return out
 
 
@@ -204,7 +218,14 @@ def apply_params(base: EpisodeConfig, params: Mapping[str, float]) -> EpisodeCon
     for name in ("cube_mass_kg", "cube_size_m", "cube_friction"):
         if name in params:
             changes[name] = params[name]
-    return base.with_scene(**changes) if changes else base
+    config = base.with_scene(**changes) if changes else base
+    if "transport_push_n" in params:
+        az, el, mag = params["push_azimuth_rad"], params["push_elevation_rad"], params["transport_push_n"]
+        force = (mag * math.cos(el) * math.cos(az), mag * math.cos(el) * math.sin(az), mag * math.sin(el))
+        faults = dataclasses.replace(base.faults, transport_push_n=force, transport_push_start_s=params["push_start_s"],
+                                     transport_push_s=base.faults.transport_push_s or PUSH_DURATION_S)
+        config = dataclasses.replace(config, faults=faults)
+    return config
 
 
 #: Which randomization fields move each scene field (to name them in errors).
@@ -218,7 +239,7 @@ _SCENE_TO_SPEC = {
 
 def _check_extremes(base: EpisodeConfig, spec: RandomizationSpec) -> None:
     """Every corner of the randomization box gives a valid scene, with the cube on the table at start and goal."""
-    active = spec.active()
+    active = [name for name in spec.active() if _SPEC_FIELDS[name][3] != "perturbation"]  # scene fields only
     for corner in range(1 << len(active)):
         params = {name: getattr(spec, name)[(corner >> k) & 1] for k, name in enumerate(active)}
         try:

@@ -1,4 +1,4 @@
-"""The ``pickplace`` command line: ``run``, ``inspect`` and ``bench``.
+"""The ``pickplace`` command line: ``run``, ``eval``, ``report``, ``inspect`` and ``bench``.
 
 The library logs and never prints; this module prints (rich tables) and turns every
 :class:`~pickplace.errors.PickPlaceError` into one clear line on stderr and a non-zero exit code.
@@ -7,23 +7,26 @@ The library logs and never prints; this module prints (rich tables) and turns ev
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import logging
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NoReturn
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from pickplace import __version__
 from pickplace.config import SceneConfig
-from pickplace.errors import PickPlaceError
+from pickplace.errors import ConfigError, PickPlaceError
 
 if TYPE_CHECKING:
     from pickplace.campaign import CampaignConfig, CampaignRun
     from pickplace.episode import EpisodeConfig, EpisodeResult
+    from pickplace.faults import FaultConfig
 
 EXIT_FAILURE = 1
 EXIT_USAGE = 2
@@ -167,11 +170,15 @@ DESIGN_NOTE = {
 }
 
 
-def episode_config_from_args(args: argparse.Namespace) -> EpisodeConfig:
-    """The episode config of ``pickplace run``/``eval``: ``--config`` TOML, then the scene flags on top."""
+def episode_config_from_args(args: argparse.Namespace, base: EpisodeConfig | None = None) -> EpisodeConfig:
+    """The episode config of ``pickplace run``/``eval``: ``--config`` TOML (or ``base``), then the flags on top."""
     from pickplace.episode import EpisodeConfig
 
-    config = EpisodeConfig.from_toml(args.config) if args.config else EpisodeConfig()
+    if base is None:
+        base = EpisodeConfig.from_toml(args.config) if args.config else EpisodeConfig()
+    config = base
+    if args.fault:
+        config = dataclasses.replace(config, faults=_faults_from_args(args.fault, config.faults))
     changes: dict[str, object] = {}
     if args.cube_start is not None:
         changes["cube_start_xy_m"] = tuple(args.cube_start)
@@ -192,6 +199,26 @@ def episode_config_from_args(args: argparse.Namespace) -> EpisodeConfig:
     return config.with_scene(**changes) if changes else config
 
 
+def _faults_from_args(items: list[str], base: FaultConfig) -> FaultConfig:
+    """``--fault KEY=VALUE`` options (VALUE in TOML syntax: ``0.5``, ``true``, ``[0, 0, -40]``) over ``base``."""
+    import tomllib
+
+    from pickplace.config import from_mapping
+    from pickplace.faults import FaultConfig
+
+    values: dict[str, object] = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise ConfigError("--fault", item, "must be KEY=VALUE, e.g. --fault pad_friction_scale=0.5")
+        try:
+            values[key] = tomllib.loads(f"v = {raw.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            raise ConfigError(f"faults.{key}", raw, "must be a number, true/false or a list like [0, 0, -40]") from None
+    return from_mapping(FaultConfig, values, "faults", base)
+
+
 def _mm(value: float | None) -> str:
     return "—" if value is None or value != value else f"{value * 1e3:.3f} mm"
 
@@ -201,11 +228,10 @@ def print_episode(result: EpisodeResult, console: Console) -> None:
     t = Table(title=f"Phase timeline (seed {result.seed})")
     for col in ("phase", "start (s)", "duration (s)", ""):
         t.add_column(col, justify="left" if col in ("phase", "") else "right")
-    start = 0.0
-    for phase, dur in result.phase_durations_s.items():
-        failed = phase == result.failure_phase
-        t.add_row(phase, f"{start:.3f}", f"{dur:.3f}", "[red]FAILED[/]" if failed else "[green]ok[/]")
-        start += dur
+    style = {"ok": "[green]ok[/]", "recovered": "[yellow]failed → recovery[/]", "failed": "[red]FAILED[/]"}
+    for phase, start, dur, outcome in result.phase_timeline:
+        status = style[outcome]
+        t.add_row(phase, f"{start:.3f}", f"{dur:.3f}", status)
     console.print(t)
 
     t = Table(title="Results")
@@ -233,7 +259,10 @@ def print_episode(result: EpisodeResult, console: Console) -> None:
                      for k, v in result.plan_time_s.items())
     t.add_row("planning (per segment)", "200–600 ms", plan or "—")
     t.add_row("wall time / real-time factor", "—", f"{result.wall_time_s:.2f} s / {result.real_time_factor:.1f}×")
+    t.add_row("recoveries", "—", str(result.retries))
     console.print(t)
+    for line in result.recoveries:
+        console.print(f"recovery: {escape(line)}", highlight=False)
 
 
 def _cmd_run(args: argparse.Namespace, console: Console) -> int:
@@ -265,7 +294,8 @@ def _cmd_run(args: argparse.Namespace, console: Console) -> int:
     if not result.success:
         err = Console(stderr=True, soft_wrap=True)
         where = f"episode failed in {result.failure_phase}" if moved else "nothing moved"
-        err.print(f"[bold red]error:[/] {result.failure_kind}: {where}: {result.failure_reason}", highlight=False)
+        err.print(f"[bold red]error:[/] {result.failure_kind}: {where}: {escape(result.failure_reason or '')}",
+                  highlight=False)
         return EXIT_FAILURE
     return 0
 
@@ -326,11 +356,22 @@ def add_episode_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cube-size", type=float, metavar="M", help="cube edge length (m)")
     p.add_argument("--friction", type=float, metavar="MU", help="cube friction coefficient")
     p.add_argument("--obstacle", action="store_true", help="put a wall between start and goal")
+    p.add_argument("--fault", action="append", metavar="KEY=VALUE", default=[],
+                   help="inject a fault (repeatable), e.g. pad_friction_scale=0.5, 'transport_push_n=[0,0,-40]', "
+                        "transport_push_s=0.05, intruder=true, cube_mass_scale=3, joint_noise_rad=1e-4")
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line on stderr (exit 2), like every other error."""
+
+    def error(self, message: str) -> NoReturn:
+        sys.stderr.write(f"error: {self.prog}: {message} (see '{self.prog} --help')\n")
+        raise SystemExit(EXIT_USAGE)
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``pickplace``."""
-    parser = argparse.ArgumentParser(prog="pickplace", description=__doc__.splitlines()[0])
+    parser = _Parser(prog="pickplace", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"pickplace {__version__}")
     parser.add_argument("-v", "--verbose", action="count", default=0, help="log more (-v info, -vv debug)")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -350,10 +391,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--obstacle", action="store_true", help="put the wall between start and goal")
     p.set_defaults(func=_cmd_inspect)
 
-    p = sub.add_parser("bench", help="benchmarks (planning: pickplace RRT* vs OMPL)")
-    p.add_argument("name", choices=["planning"], help="which benchmark")
+    p = sub.add_parser("bench", help="benchmarks: planning (vs OMPL), control (vs bare mj_step), campaign (scaling)")
+    p.add_argument("name", choices=["planning", "control", "campaign"], help="which benchmark")
     p.add_argument("bench_args", nargs=argparse.REMAINDER,
-                   help="options of the benchmark (e.g. --json, --quick, --queries N, --budget S, --no-ompl)")
+                   help="options of the benchmark (e.g. --json; planning: --quick, --queries N, --budget S, "
+                        "--no-ompl)")
     p.set_defaults(func=_cmd_bench)
 
     p = sub.add_parser("eval", help="a campaign of randomized episodes on local processes or Ray, persisted and "
@@ -384,9 +426,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _cmd_bench(args: argparse.Namespace, console: Console) -> int:
-    from pickplace.bench import planning
+    import importlib
 
-    return int(planning.main(list(args.bench_args)))
+    bench = importlib.import_module(f"pickplace.bench.{args.name}")
+    return int(bench.main(list(args.bench_args)))
 
 
 # --------------------------------------------------------------------------- #
@@ -408,13 +451,10 @@ def campaign_from_args(args: argparse.Namespace) -> CampaignConfig:
     flags on top); the TOML may also hold a ``[randomization]`` table. With ``--resume`` and no episode
     option, ``--seed`` or ``--no-randomize``, the campaign recorded in ``OUT/campaign.json`` is resumed.
     """
-    import tempfile
-
     from pickplace.campaign import (
         CAMPAIGN_FILE,
         CampaignConfig,
         RandomizationSpec,
-        episode_config_toml,
         load_campaign,
         load_campaign_toml,
     )
@@ -425,11 +465,7 @@ def campaign_from_args(args: argparse.Namespace) -> CampaignConfig:
     spec = RandomizationSpec()
     if args.config:
         base_file, spec = load_campaign_toml(args.config)
-        # Same flag semantics as `run`: episode_config_from_args on the file without its [randomization] table.
-        with tempfile.TemporaryDirectory() as tmp:
-            stripped = Path(tmp) / Path(args.config).name
-            stripped.write_text(episode_config_toml(base_file), encoding="utf-8")
-            base = episode_config_from_args(argparse.Namespace(**{**vars(args), "config": str(stripped)}))
+        base = episode_config_from_args(args, base_file)
     else:
         base = episode_config_from_args(args)
     if args.no_randomize:
@@ -527,7 +563,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.func(args, console))
     except PickPlaceError as exc:
-        err.print(f"[bold red]error:[/] {type(exc).__name__}: {exc}", highlight=False)
+        err.print(f"[bold red]error:[/] {type(exc).__name__}: {escape(str(exc))}", highlight=False)
         return EXIT_FAILURE
     except KeyboardInterrupt:
         err.print("interrupted")

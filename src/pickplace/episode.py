@@ -140,7 +140,9 @@ class EpisodeResult:
         cycle_time_s: Simulated time from IDLE to DONE (or to the failure).
         wall_time_s: Wall-clock time of the whole episode, model building included.
         real_time_factor: Simulated seconds per wall-clock second (simulation incl. the hold after DONE).
-        phase_durations_s: Simulated time per phase, in the order they ran.
+        phase_durations_s: Simulated time per phase (summed over repeats), in the order first run.
+        phase_timeline: ``(phase, start_s, duration_s, outcome)`` of every phase run, in order; outcome is
+            ``ok``, ``recovered`` (it failed, then a recovery followed) or ``failed``.
         plan_time_s: Wall time of planning per segment (``approach``, ``transport``, ``return``).
         retime_time_s: Wall time of TOPP-RA per segment.
         waypoints_raw: Waypoints of the tree path per segment.
@@ -179,6 +181,7 @@ class EpisodeResult:
     wall_time_s: float
     real_time_factor: float
     phase_durations_s: dict[str, float]
+    phase_timeline: tuple[tuple[str, float, float, str], ...]
     plan_time_s: dict[str, float]
     retime_time_s: dict[str, float]
     waypoints_raw: dict[str, int]
@@ -276,6 +279,7 @@ def _result(out: MachineOutcome, config: EpisodeConfig, seed: int, wall: float, 
         wall_time_s=wall,
         real_time_factor=rtf,
         phase_durations_s=dict(out.phase_durations_s),
+        phase_timeline=tuple(out.timeline),
         plan_time_s=_by_segment(out.segments, "plan_time_s"),
         retime_time_s=_by_segment(out.segments, "retime_time_s"),
         waypoints_raw=_by_segment(out.segments, "waypoints_raw"),

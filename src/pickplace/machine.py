@@ -215,6 +215,8 @@ class MachineOutcome:
         unexpected_contacts: Geom pairs of unexpected contacts seen (empty on success).
         wall_plan_time_s: Wall time spent planning, IK and retiming (s).
         recoveries: One line per recovery: the failure that was caught and what was done about it.
+        timeline: ``(phase, start_s, duration_s, outcome)`` of every phase run, in order; outcome is ``ok``,
+            ``recovered`` (it failed and a recovery followed) or ``failed``. Phases repeat after a recovery.
     """
 
     phase: Phase = Phase.IDLE
@@ -242,6 +244,7 @@ class MachineOutcome:
     unexpected_contacts: list[tuple[str, str]] = field(default_factory=list)
     wall_plan_time_s: float = 0.0
     recoveries: list[str] = field(default_factory=list)
+    timeline: list[tuple[str, float, float, str]] = field(default_factory=list)
 
 
 #: Phases whose grasp failures are recovered by letting go and grasping again.
@@ -665,14 +668,14 @@ class PickPlaceMachine:
             except ConfigError:
                 raise  # bad input is the caller's error, not a failed episode
             except PickPlaceError as exc:
-                self._spent(phase, t0)
                 recovery = self._recovery(phase, exc)
+                self._spent(phase, t0, "failed" if recovery is None else "recovered")
                 if recovery is None:
                     self._fail(phase, exc)
                     break
                 phase = recovery
                 continue
-            self._spent(phase, t0)
+            self._spent(phase, t0, "ok")
             log.debug("%s done in %.3f s (t = %.3f s)", phase.value, self.monitor.t - t0, self.monitor.t)
             phase = nxt
         else:
@@ -686,9 +689,10 @@ class PickPlaceMachine:
             out.tracking_error_rms_rad = float(np.sqrt(np.mean(errs**2)))
         return out
 
-    def _spent(self, phase: Phase, t0: float) -> None:
+    def _spent(self, phase: Phase, t0: float, outcome: str) -> None:
         durations = self.out.phase_durations_s
         durations[phase.value] = durations.get(phase.value, 0.0) + self.monitor.t - t0
+        self.out.timeline.append((phase.value, t0, self.monitor.t - t0, outcome))
 
     # ------------------------------------------------------------------ recovery
     def _recovery(self, phase: Phase, exc: PickPlaceError) -> Phase | None:
