@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 
 from pickplace.collision import CollisionChecker, CollisionPolicy
@@ -77,8 +78,21 @@ def solve_grasp_configurations(
     ik_config: IKConfig | None = None,
     cube_pos_m: np.ndarray | None = None,
     cube_yaw_rad: float | None = None,
+    world: mujoco.MjData | None = None,
+    clearance_m: float = 0.0,
 ) -> GraspConfigurations:
     """Targets for the scene's cube and goal, solved to joint configurations.
+
+    Args:
+        robot: The models.
+        ik_config: IK settings.
+        cube_pos_m: The cube's centre (3,) (m); default: its start in the scene.
+        cube_yaw_rad: The cube's yaw (rad); default: its start yaw in the scene.
+        world: The simulation state the solutions must be collision free in (where the cube rests, anything
+            that moved); default: the scene's initial state.
+        clearance_m: Clearance the pregrasp and preplace configurations must keep from the table, floor and
+            obstacles (m), e.g. the planner's margin so that it accepts them as goals. The grasp and the place
+            are checked at contact (the fingers work 5 mm above the table).
 
     Raises:
         UnreachableTarget: naming the target that cannot be reached collision free.
@@ -90,8 +104,12 @@ def solve_grasp_configurations(
     targets = grasp_targets(scene, geom.pad_half_height_m, T_home, cube_pos_m, cube_yaw)
     held = geom.contact_travel_m(scene.cube_size_m)
     free = CollisionChecker(robot, CollisionPolicy(margin_m=0.0))
-    carry = carrying_checker(robot, targets, cube_yaw, held, margin_m=0.0)
+    above = CollisionChecker(robot, CollisionPolicy(margin_m=clearance_m))
+    carry = carrying_checker(robot, targets, cube_yaw, held, margin_m=clearance_m)
     place = carrying_checker(robot, targets, cube_yaw, held, margin_m=0.0, allow_cube_table=True)
+    if world is not None:
+        for checker in (free, above, carry, place):
+            checker.set_world(world)
 
     def solve(name: str, q0: np.ndarray, checker: CollisionChecker) -> IKResult:
         try:
@@ -99,7 +117,7 @@ def solve_grasp_configurations(
         except UnreachableTarget as exc:
             raise _with_collisions(exc, checker, robot, dict(targets.named())[name], q0, ik_config) from None
 
-    pre = solve("pregrasp", robot.home_q, free)
+    pre = solve("pregrasp", robot.home_q, above)
     grasp = solve("grasp", pre.q, free)
     preplace = solve("preplace", pre.q, carry)
     placed = solve("place", preplace.q, place)

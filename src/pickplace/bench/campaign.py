@@ -19,13 +19,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import sys
 import tempfile
 from pathlib import Path
 from typing import Any
 
+from pickplace.bench import machine_info
 from pickplace.campaign import CampaignConfig, CampaignRun, run_campaign
 
 
@@ -99,8 +98,7 @@ def run(trials: int = 20, repeats: int = 1, campaign: int = 50) -> dict[str, Any
                      "successes": big.summary.successes, "success_rate": big.summary.success_rate,
                      "trials_per_s": campaign / big.elapsed_s},
         "machine_baseline_mj_step": baseline,
-        "machine": {"platform": platform.platform(), "cpu_count": os.cpu_count(),
-                    "load_average_1min": os.getloadavg()[0], "python": platform.python_version()},
+        "machine": machine_info(),
     }
 
 

@@ -18,8 +18,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import sys
 import time
 from collections.abc import Callable
@@ -29,6 +27,7 @@ import mujoco
 import numpy as np
 
 from pickplace import control
+from pickplace.bench import machine_info
 from pickplace.configurations import solve_grasp_configurations
 from pickplace.control import ControlConfig
 from pickplace.model import Robot, build
@@ -130,8 +129,7 @@ def run(calls: int = 3000, repeats: int = 5) -> dict[str, Any]:
         "law_calls": calls,
         "repeats": repeats,
         "timestep_s": robot.mj.opt.timestep,
-        "machine": {"platform": platform.platform(), "cpu_count": os.cpu_count(),
-                    "python": platform.python_version(), "mujoco": mujoco.__version__},
+        "machine": machine_info(),
     }
 
 

@@ -29,8 +29,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import sys
 import time
 from collections.abc import Callable
@@ -42,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from pickplace import planning
+from pickplace.bench import machine_info
 from pickplace.collision import CollisionChecker, CollisionPolicy
 from pickplace.config import SceneConfig
 from pickplace.configurations import solve_grasp_configurations
@@ -308,8 +307,7 @@ def main(argv: list[str] | None = None) -> int:
                             "check_us_batch": by_checker[0]["check_us_batch"], "by_checker": by_checker},
         "budget_s": budget,
         "queries": queries,
-        "machine": {"platform": platform.platform(), "cpu_count": os.cpu_count(),
-                    "python": platform.python_version()},
+        "machine": machine_info(),
         "ompl": None if ompl is None else {"version": _version("ompl"), "range_rad": args.ompl_range or "default",
                                            "edge_resolution_l2_rad": EDGE_RES_RAD},
     }
