@@ -14,6 +14,7 @@ by the iteration limit or by the first solution, not by the wall-clock ``time_bu
 from __future__ import annotations
 
 import enum
+import functools
 import logging
 import math
 import time
@@ -182,8 +183,9 @@ def _densify(qa: np.ndarray, qb: np.ndarray, res: float) -> np.ndarray:
     return pts
 
 
+@functools.lru_cache(maxsize=4096)
 def _coarse_to_fine(n: int) -> np.ndarray:
-    """Indices 0..n-1 ordered ends first, then by bisection (midpoints of ever finer halvings)."""
+    """Indices 0..n-1 ordered ends first, then by bisection (midpoints of ever finer halvings); read-only."""
     order = [0, n - 1] if n > 1 else [0]
     seen = set(order)
     step = n - 1
@@ -194,7 +196,9 @@ def _coarse_to_fine(n: int) -> np.ndarray:
                 order.append(k)
         step //= 2
     order.extend(k for k in range(n) if k not in seen)
-    return np.array(order)
+    out = np.array(order)
+    out.setflags(write=False)
+    return out
 
 
 def segment_valid(checker: ValidityChecker, qa: np.ndarray, qb: np.ndarray, resolution_rad: float) -> bool:
@@ -352,9 +356,10 @@ def shortcut(checker: ValidityChecker, path: np.ndarray, config: PlannerConfig,
     """Shorten a valid path (K, n) (rad); returns a valid path (L, n) with the same ends and no higher cost.
 
     First ``config.shortcut_iterations`` random shortcuts: two points drawn uniformly along the path's
-    arc length (possibly mid-segment) are joined if the straight segment (and the two partial segments
-    to their neighbouring waypoints) is valid and shorter. Then a greedy pass removes every intermediate
-    waypoint whose neighbours can be joined directly, until none can. Deterministic given rng.
+    arc length (possibly mid-segment) are joined if the straight segment between them is valid and
+    shorter (the partial segments to their neighbouring waypoints are pieces of checked segments). Then a
+    greedy pass removes every intermediate waypoint whose neighbours can be joined directly, until none
+    can. Deterministic given rng.
     """
     path = np.array(path, dtype=float)
     res = config.edge_resolution_rad
@@ -370,8 +375,9 @@ def shortcut(checker: ValidityChecker, path: np.ndarray, config: PlannerConfig,
         p2 = path[j] + (path[j + 1] - path[j]) * ((s2 - cum[j]) / (cum[j + 1] - cum[j]))
         if np.linalg.norm(p2 - p1) > s2 - s1 - max(config.shortcut_min_gain_rad, _EPS):
             continue
-        if (segment_valid(checker, p1, p2, res) and segment_valid(checker, path[i], p1, res)
-                and segment_valid(checker, p2, path[j + 1], res)):
+        # path[i] -> p1 and p2 -> path[j + 1] are pieces of segments already checked at this resolution: any
+        # point on them lies as close to a checked configuration as before, so only p1 -> p2 is new.
+        if segment_valid(checker, p1, p2, res):
             path = np.vstack([path[: i + 1], p1, p2, path[j + 1:]])
             path = path[np.concatenate([[True], np.any(np.diff(path, axis=0) != 0.0, axis=1)])]  # exact dups
     removed = True
