@@ -69,6 +69,10 @@ def _display(name: str) -> tuple[str, float]:
         return f"{name[:-4]} (deg)", 180.0 / math.pi
     if name.endswith("_kg"):
         return f"{name[:-3]} (kg)", 1.0
+    if name.endswith("_n"):
+        return f"{name[:-2]} (N)", 1.0
+    if name.endswith("_s"):
+        return f"{name[:-2]} (s)", 1.0
     return name, 1.0
 
 
