@@ -371,7 +371,9 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``pickplace``."""
-    parser = _Parser(prog="pickplace", description=__doc__.splitlines()[0])
+    parser = _Parser(prog="pickplace", description="A simulated UR5e picks a cube at A and places it at B, in closed "
+                     "loop, and measures every step: one episode (run), campaigns (eval, report), the model and "
+                     "its IK (inspect), benchmarks (bench).")
     parser.add_argument("--version", action="version", version=f"pickplace {__version__}")
     parser.add_argument("-v", "--verbose", action="count", default=0, help="log more (-v info, -vv debug)")
     sub = parser.add_subparsers(dest="command", required=True)
