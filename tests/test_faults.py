@@ -75,8 +75,9 @@ def test_cube_pushed_before_the_pick_detected_and_reobserved() -> None:
     assert r.place_error_xy_m <= 1.4e-3
 
 
-def test_slippery_pads_detected_in_lift_and_retries_are_bounded() -> None:
-    """Friction 0.02 (the reference design's slipping cube): detected in LIFT; recovery gives up after 3 tries."""
+def test_slippery_pads_detected_in_lift_and_not_retried_forever() -> None:
+    """Friction 0.02 (the reference design's slipping cube): detected in LIFT. The regrasp slips the same way,
+    so the machine stops retrying: the cause is not transient."""
     faults = FaultConfig(pad_friction_scale=0.02)
     r = _run(faults, recovery=False)
     _report("pad friction x0.02, no recovery", r, r.cycle_time_s - _phase_start(r, "LIFT"))
@@ -87,7 +88,8 @@ def test_slippery_pads_detected_in_lift_and_retries_are_bounded() -> None:
     r = _run(faults, recovery=True)
     _report("pad friction x0.02, with recovery", r)
     assert not r.success and r.failure_phase == "LIFT"
-    assert r.retries == 3 and all("slipped" in line for line in r.recoveries)  # bounded, each with its reason
+    assert r.retries == 1 and "slipped" in r.recoveries[0]
+    assert "slipped" in r.failure_reason and "not transient" in r.failure_reason
 
 
 def test_half_friction_and_sensor_noise_are_tolerated() -> None:

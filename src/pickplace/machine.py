@@ -22,6 +22,7 @@ import dataclasses
 import enum
 import logging
 import math
+import re
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -117,7 +118,8 @@ class MachineConfig:
         poll_s: Step of the loops that wait for the gripper (s).
         stable_after_release_s: After DONE, the simulation continues until this long after the release, and
             the cube's position then is reported (s).
-        max_retries: Recoveries allowed per episode (regrasp, re-pick, replan); 0 turns recovery off.
+        max_retries: Recoveries allowed per episode (regrasp, re-pick, replan); 0 turns recovery off. A
+            failure identical (numbers aside) to the one the last recovery answered is not retried again.
         predict_period_s: While a trajectory runs, the rest of it is checked against the world as it is now
             this often (s); a predicted collision stops the arm and replans.
         cube_settle_timeout_s: During a recovery, time allowed for the released cube to come to rest (s).
@@ -247,6 +249,8 @@ class MachineOutcome:
     timeline: list[tuple[str, float, float, str]] = field(default_factory=list)
 
 
+#: Numbers in a failure message (ignored when comparing two failures).
+_NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
 #: Phases whose grasp failures are recovered by letting go and grasping again.
 _GRASP_PHASES = (Phase.CLOSE, Phase.LIFT, Phase.PLAN_TRANSPORT, Phase.EXEC_TRANSPORT, Phase.DESCEND_PLACE)
 #: Where to go back to when a collision is predicted or met while a trajectory runs.
@@ -293,6 +297,8 @@ class PickPlaceMachine:
         self.monitor = StepMonitor(robot, recorder, machine.slip_tolerance_m, self.injector)
         self.monitor.predict_every = max(1, round(machine.predict_period_s / float(robot.mj.opt.timestep)))
         self.retries = 0
+        self._last_recovered: tuple[Phase, str, str] | None = None  # the failure the last recovery answered
+        self._repeated = False
         self._segment_checker: CollisionChecker | None = None
         self._traj_t0 = 0.0
         self.out = MachineOutcome()
@@ -704,6 +710,10 @@ class PickPlaceMachine:
             self.out.unexpected_contacts.extend(p for p in exc.pairs if p not in self.out.unexpected_contacts)
         if self.retries >= self.cfg.max_retries:
             return None
+        signature = (phase, type(exc).__name__, _NUMBER.sub("#", str(exc)))
+        if signature == self._last_recovered:  # recovering changed nothing: the cause is not transient
+            self._repeated = True
+            return None
         if isinstance(exc, CollisionPredicted) and phase in _REPLAN:
             action, nxt = "stop and replan", _REPLAN[phase]
             self._hold(self.q, 0.15)  # brake before planning from where the arm stands
@@ -720,6 +730,7 @@ class PickPlaceMachine:
         else:
             return None
         self.retries += 1
+        self._last_recovered = signature
         note = f"{phase.value}: {type(exc).__name__}: {exc} -> {action}"
         self.out.recoveries.append(note)
         log.info("recovery %d/%d: %s", self.retries, self.cfg.max_retries, note)
@@ -802,6 +813,8 @@ class PickPlaceMachine:
         out.failure_phase = exc.phase if isinstance(exc, PhaseFailed) else phase
         out.failure_reason = exc.reason if isinstance(exc, PhaseFailed) else str(exc)
         out.failure_kind = type(exc).__name__
+        if self._repeated:
+            out.failure_reason += " (the same failure as before the last recovery: not transient, no more retries)"
         out.cycle_time_s = self.monitor.t
         if isinstance(exc, UnexpectedContact):
             out.unexpected_contacts = list(exc.pairs)
