@@ -18,6 +18,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from pickplace.campaign import (
@@ -31,6 +32,7 @@ from pickplace.campaign import (
     CampaignRun,
     RandomizationSpec,
     TrialRecord,
+    apply_params,
     episode_config_toml,
     load_campaign_toml,
     make_trial,
@@ -410,3 +412,21 @@ def test_smoke_campaign_of_50_trials(tmp_path: Path) -> None:
     run = run_campaign(CampaignConfig(trials=50, seed=0, workers=2), tmp_path / "smoke")
     assert run.summary.successes >= 49, run.summary.failures
 
+
+
+def test_fault_ranges_are_sampled_into_the_trial_faults_without_moving_the_other_draws() -> None:
+    """Randomized fault scales land in each trial's [faults]; turning them on changes no other parameter."""
+    base_spec = RandomizationSpec(transport_push_n=(0.0, 40.0))
+    faulted = RandomizationSpec(transport_push_n=(0.0, 40.0), pad_friction_scale=(0.3, 1.0),
+                                cube_mass_scale=(1.0, 2.0), joint_noise_rad=(0.0, 1e-4))
+    a = base_spec.sample(np.random.default_rng(11))
+    b = faulted.sample(np.random.default_rng(11))
+    assert {k: b[k] for k in a} == a  # same scene and push draws
+    assert 0.3 <= b["pad_friction_scale"] <= 1.0 and 1.0 <= b["cube_mass_scale"] <= 2.0
+    config = apply_params(EpisodeConfig(), b)
+    assert config.faults.pad_friction_scale == b["pad_friction_scale"]
+    assert config.faults.cube_mass_scale == b["cube_mass_scale"]
+    assert config.faults.joint_noise_rad == b["joint_noise_rad"]
+    assert np.linalg.norm(config.faults.transport_push_n) == pytest.approx(b["transport_push_n"])
+    with pytest.raises(ConfigError, match=r"randomization\.pad_friction_scale"):
+        RandomizationSpec(pad_friction_scale=(-1.0, 1.0))

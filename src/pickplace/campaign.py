@@ -101,7 +101,13 @@ _SPEC_FIELDS: dict[str, tuple[float, float, str, str]] = {
     "cube_size_m": (MIN_CUBE_SIZE_M, MAX_CUBE_SIZE_M, "m", "absolute"),
     "cube_friction": (0.05, 5.0, "", "absolute"),
     "transport_push_n": (0.0, 200.0, "N", "perturbation"),
+    "pad_friction_scale": (0.0, 5.0, "", "fault"),
+    "cube_mass_scale": (0.01, 50.0, "", "fault"),
+    "joint_noise_rad": (0.0, 0.05, "rad", "fault"),
 }
+#: The first fields of _SPEC_FIELDS; the push's direction and start are drawn right after them, and any field
+#: added later after those, so that adding a field never changes the values of the existing ones.
+_N_FIRST_FIELDS = 10
 #: Duration of a randomized transport push when the base config's faults do not set one (s).
 PUSH_DURATION_S = 0.05
 #: Window, after the transport trajectory starts, in which a randomized push starts (s).
@@ -127,6 +133,9 @@ class RandomizationSpec:
         transport_push_n: Magnitude of a push on the carried cube (N), off by default. Its direction is drawn
             uniformly on the sphere and its start uniformly in ``PUSH_START_S`` after the transport starts;
             it lasts the base config's ``faults.transport_push_s``, or ``PUSH_DURATION_S``.
+        pad_friction_scale: The ``faults.pad_friction_scale`` of each trial, off by default.
+        cube_mass_scale: The ``faults.cube_mass_scale`` of each trial (true / believed mass), off by default.
+        joint_noise_rad: The ``faults.joint_noise_rad`` of each trial (rad), off by default.
     """
 
     cube_dx_m: Range | None = (-0.05, 0.05)
@@ -139,6 +148,9 @@ class RandomizationSpec:
     cube_size_m: Range | None = (0.03, 0.05)
     cube_friction: Range | None = (0.6, 1.5)
     transport_push_n: Range | None = None
+    pad_friction_scale: Range | None = None
+    cube_mass_scale: Range | None = None
+    joint_noise_rad: Range | None = None
 
     def __post_init__(self) -> None:
         for name, (lo, hi, unit, _) in _SPEC_FIELDS.items():
@@ -188,13 +200,15 @@ class RandomizationSpec:
     def sample(self, rng: np.random.Generator) -> dict[str, float]:
         """One draw: randomized field name -> value (the same number of draws whatever is randomized)."""
         u = rng.random(len(_SPEC_FIELDS) + 3)  # + the push's direction (2) and start (1)
+        first = _N_FIRST_FIELDS
+        draws = np.concatenate([u[:first], u[first + 3:]])  # per field, in _SPEC_FIELDS order
         out: dict[str, float] = {}
         for k, name in enumerate(_SPEC_FIELDS):
             r = getattr(self, name)
             if r is not None:
-                out[name] = float(r[0] + u[k] * (r[1] - r[0]))
+                out[name] = float(r[0] + draws[k] * (r[1] - r[0]))
         if self.transport_push_n is not None:
-            a, b, c = u[len(_SPEC_FIELDS):]
+            a, b, c = u[first:first + 3]
             out["push_azimuth_rad"] = float(2 * math.pi * a)
             out["push_elevation_rad"] = float(math.asin(2 * b - 1))
             out["push_start_s"] = float(PUSH_START_S[0] + c * (PUSH_START_S[1] - PUSH_START_S[0]))
@@ -225,6 +239,10 @@ def apply_params(base: EpisodeConfig, params: Mapping[str, float]) -> EpisodeCon
         faults = dataclasses.replace(base.faults, transport_push_n=force, transport_push_start_s=params["push_start_s"],
                                      transport_push_s=base.faults.transport_push_s or PUSH_DURATION_S)
         config = dataclasses.replace(config, faults=faults)
+    faults = {name: params[name] for name in ("pad_friction_scale", "cube_mass_scale", "joint_noise_rad")
+              if name in params}
+    if faults:
+        config = dataclasses.replace(config, faults=dataclasses.replace(config.faults, **faults))
     return config
 
 
@@ -239,7 +257,7 @@ _SCENE_TO_SPEC = {
 
 def _check_extremes(base: EpisodeConfig, spec: RandomizationSpec) -> None:
     """Every corner of the randomization box gives a valid scene, with the cube on the table at start and goal."""
-    active = [name for name in spec.active() if _SPEC_FIELDS[name][3] != "perturbation"]  # scene fields only
+    active = [name for name in spec.active() if _SPEC_FIELDS[name][3] in ("offset", "absolute")]  # scene fields
     for corner in range(1 << len(active)):
         params = {name: getattr(spec, name)[(corner >> k) & 1] for k, name in enumerate(active)}
         try:
