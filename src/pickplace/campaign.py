@@ -46,7 +46,6 @@ import os
 import re
 import signal
 import time
-import tomllib
 import traceback
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -58,7 +57,7 @@ from typing import Any, Literal
 import numpy as np
 
 from pickplace.config import MAX_CUBE_SIZE_M, MIN_CUBE_SIZE_M, check_int, check_range, check_vector
-from pickplace.episode import EpisodeConfig, EpisodeResult, run_episode
+from pickplace.episode import EpisodeConfig, EpisodeResult, read_toml, run_episode
 from pickplace.errors import ConfigError, PickPlaceError
 
 log = logging.getLogger(__name__)
@@ -576,13 +575,7 @@ def load_campaign_toml(path: str | Path) -> tuple[EpisodeConfig, RandomizationSp
     Returns:
         The episode config (without the randomization table) and the spec (defaults if the table is absent).
     """
-    p = Path(path)
-    try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise ConfigError("config", str(p), f"cannot be read: {exc.strerror or exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError("config", str(p), f"is not valid TOML: {exc}") from None
+    data = read_toml(path)
     spec = RandomizationSpec.from_dict(data.pop("randomization", {}))
     return EpisodeConfig.from_dict(data), spec
 

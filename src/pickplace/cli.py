@@ -27,6 +27,8 @@ if TYPE_CHECKING:
     from pickplace.campaign import CampaignConfig, CampaignRun
     from pickplace.episode import EpisodeConfig, EpisodeResult
     from pickplace.faults import FaultConfig
+    from pickplace.model import Robot
+    from pickplace.telemetry import Telemetry
 
 EXIT_FAILURE = 1
 EXIT_USAGE = 2
@@ -281,16 +283,17 @@ def _cmd_run(args: argparse.Namespace, console: Console) -> int:
     elif moved:
         print_episode(result, console)
     if result.telemetry is not None:
-        from pickplace import report
+        from pickplace import model, report
 
-        if args.plots:
-            for path in report.save_plots(result.telemetry, Path(args.plots)):
-                console.print(f"wrote {path}", highlight=False) if not args.json else None
+        written = report.save_plots(result.telemetry, Path(args.plots)) if args.plots else []
+        robot = model.build(config.scene) if args.video or args.viewer else None  # the scene the frames show
         if args.video:
-            path = report.render_video(_robot_for(config), result.telemetry, Path(args.video))
-            console.print(f"wrote {path}", highlight=False) if not args.json else None
+            written.append(report.render_video(robot, result.telemetry, Path(args.video)))
+        if not args.json:
+            for path in written:
+                console.print(f"wrote {path}", highlight=False)
         if args.viewer:
-            _replay_in_viewer(config, result)
+            _replay_in_viewer(robot, result.telemetry)
     if not result.success:
         err = Console(stderr=True, soft_wrap=True)
         where = f"episode failed in {result.failure_phase}" if moved else "nothing moved"
@@ -300,31 +303,20 @@ def _cmd_run(args: argparse.Namespace, console: Console) -> int:
     return 0
 
 
-def _robot_for(config: EpisodeConfig) -> object:
-    from pickplace import model
-
-    return model.build(config.scene)
-
-
 def _has_display() -> bool:
     import os
 
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")) or sys.platform in ("darwin", "win32")
 
 
-def _replay_in_viewer(config: EpisodeConfig, result: EpisodeResult) -> None:
-    """Replay the recorded episode in MuJoCo's passive viewer, in real time."""
+def _replay_in_viewer(robot: Robot, tel: Telemetry) -> None:
+    """Replay a recorded episode in MuJoCo's passive viewer, in real time."""
     import time
 
     import mujoco
     import mujoco.viewer
 
-    from pickplace import model
-
-    robot = model.build(config.scene)
     d = robot.make_data()
-    tel = result.telemetry
-    assert tel is not None
     with mujoco.viewer.launch_passive(robot.mj, d) as viewer:
         t0 = time.perf_counter()
         for t, qpos in zip(tel.frame_t_s, tel.frame_qpos, strict=True):

@@ -65,8 +65,8 @@ class CollisionChecker:
     Args:
         robot: The models.
         policy: What counts as a collision.
-        world_qpos: Full MuJoCo qpos giving the pose of everything that is not the arm (the cube where it
-            rests); default: the scene's initial state.
+        world: A simulation state giving the pose of everything that is not the arm (where the cube rests,
+            mocap bodies); default: the scene's initial state. See :meth:`set_world`.
         T_tcp_cube: Pose of the cube in the tcp frame while it is held (default: centred, aligned).
     """
 
@@ -74,7 +74,7 @@ class CollisionChecker:
         self,
         robot: Robot,
         policy: CollisionPolicy | None = None,
-        world_qpos: np.ndarray | None = None,
+        world: mujoco.MjData | None = None,
         T_tcp_cube: pin.SE3 | None = None,
     ) -> None:
         self.robot = robot
@@ -84,16 +84,14 @@ class CollisionChecker:
         h = self._handles = Handles.resolve(self._m)
         self._held_body = mujoco.mj_name2id(self._m, mujoco.mjtObj.mjOBJ_BODY, HELD_CUBE)
         self._held_geom = mujoco.mj_name2id(self._m, mujoco.mjtObj.mjOBJ_GEOM, HELD_CUBE)
-        if world_qpos is None:
-            mujoco.mj_resetDataKeyframe(self._m, self._d, 0)
-        else:
-            self._d.qpos[:] = world_qpos
-        self._d.qpos[h.finger_qpos] = self.policy.finger_m
-        self._weld_held_cube(T_tcp_cube or pin.SE3.Identity())
-        self.checks = 0
-
         self._arm = slice(int(h.arm_qpos[0]), int(h.arm_qpos[0]) + 6)
         assert np.array_equal(h.arm_qpos, np.arange(self._arm.start, self._arm.stop)), "arm qpos must be contiguous"
+        mujoco.mj_resetDataKeyframe(self._m, self._d, 0)
+        self._d.qpos[h.finger_qpos] = self.policy.finger_m
+        if world is not None:
+            self.set_world(world)
+        self._weld_held_cube(T_tcp_cube or pin.SE3.Identity())
+        self.checks = 0
         self._configure_filters()
 
     def set_world(self, d: mujoco.MjData) -> None:

@@ -92,16 +92,7 @@ class EpisodeConfig:
     @classmethod
     def from_toml(cls, path: str | Path) -> EpisodeConfig:
         """Load a TOML file (see the module docstring); errors name the file, the key and the problem."""
-        p = Path(path)
-        try:
-            text = p.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise ConfigError("config", str(p), f"cannot be read: {exc.strerror or exc}") from None
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise ConfigError("config", str(p), f"is not valid TOML: {exc}") from None
-        return cls.from_dict(data)
+        return cls.from_dict(read_toml(path))
 
     def to_dict(self) -> dict[str, Any]:
         """Nested plain data (lists for tuples), the inverse of :meth:`from_dict`."""
@@ -110,6 +101,17 @@ class EpisodeConfig:
     def with_scene(self, **changes: Any) -> EpisodeConfig:
         """A copy with some scene fields changed (validated)."""
         return dataclasses.replace(self, scene=dataclasses.replace(self.scene, **changes))
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """The tables of a TOML file; :class:`ConfigError` naming the file if it cannot be read or parsed."""
+    p = Path(path)
+    try:
+        return tomllib.loads(p.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ConfigError("config", str(p), f"cannot be read: {exc.strerror or exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError("config", str(p), f"is not valid TOML: {exc}") from None
 
 
 _SECTIONS: dict[str, type] = {"scene": SceneConfig, "machine": MachineConfig, "control": ControlConfig,
@@ -245,10 +247,10 @@ def run_episode(config: EpisodeConfig | None = None, seed: int = 0, *, record: b
     robot = build(config.scene)
     apply_model_faults(robot, config.faults)
     data = robot.make_data()
-    planner = dataclasses.replace(config.planner, seed=seed)
+    config = dataclasses.replace(config, planner=dataclasses.replace(config.planner, seed=seed))  # as it runs
     recorder = TelemetryRecorder(robot, frame_rate_hz, config.scene.goal_pos_m) if record else None
     noise_rng = np.random.default_rng([seed, 1])  # the sensor-noise stream, independent of the planner's
-    machine = PickPlaceMachine(robot, data, config.machine, config.control, planner, config.timing, config.ik,
+    machine = PickPlaceMachine(robot, data, config.machine, config.control, config.planner, config.timing, config.ik,
                                recorder, config.faults, noise_rng)
     t_sim0 = time.perf_counter()
     out = machine.run()
@@ -268,7 +270,6 @@ def _by_segment(segments: list[SegmentPlan], attr: str) -> dict[str, Any]:
 
 def _result(out: MachineOutcome, config: EpisodeConfig, seed: int, wall: float, rtf: float,
             telemetry: Telemetry | None) -> EpisodeResult:
-    planner = dataclasses.replace(config.planner, seed=seed)
     return EpisodeResult(
         success=out.phase is Phase.DONE,
         failure_phase=out.failure_phase.value if out.failure_phase is not None else None,
@@ -304,9 +305,9 @@ def _result(out: MachineOutcome, config: EpisodeConfig, seed: int, wall: float, 
         retries=len(out.recoveries),  # each recovery (regrasp, replan, payload correction) is one retry
         recoveries=tuple(out.recoveries),
         measured_cube_mass_kg=out.lift_load_n / 9.81,
-        config=dataclasses.replace(config, planner=planner),
+        config=config,
         telemetry=telemetry,
     )
 
 
-__all__ = ["EpisodeConfig", "EpisodeResult", "run_episode"]
+__all__ = ["EpisodeConfig", "EpisodeResult", "read_toml", "run_episode"]

@@ -110,11 +110,11 @@ def apply_model_faults(robot: Robot, faults: FaultConfig) -> None:
         b = h.cube_body
         m.body_mass[b] *= faults.cube_mass_scale
         m.body_inertia[b] *= faults.cube_mass_scale
+        mujoco.mj_setConst(m, mujoco.MjData(m))  # derived quantities (e.g. body_invweight0) follow the mass
     if faults.tcp_offset_error_m != 0.0:
         frame = robot.pin.frames[robot.pin_tcp_frame]
         frame.placement.translation = frame.placement.translation + np.array([0.0, 0.0, faults.tcp_offset_error_m])
         robot.pin.frames[robot.pin_tcp_frame] = frame
-    mujoco.mj_setConst(m, mujoco.MjData(m))  # derived quantities (e.g. body_invweight0) follow the changes
     if faults.active:
         log.info("faults applied to the model: %s", faults)
 

@@ -10,6 +10,7 @@ cube with its real actuator, lifts it 0.15 m and carries it 0.40 m sideways with
 from __future__ import annotations
 
 import logging
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
 
 import mujoco
@@ -99,46 +100,54 @@ def is_settled(robot: Robot, d: mujoco.MjData, speed_tol_m_s: float = 1e-3) -> b
     return bool(np.all(np.abs(d.qvel[robot.handles.finger_dof]) < speed_tol_m_s))
 
 
-def pad_forces(robot: Robot, d: mujoco.MjData) -> np.ndarray:
-    """Normal force (N) of the cube on the left and right pad, (2,)."""
-    m, h = robot.mj, robot.handles
-    out = np.zeros(2)
-    f = np.zeros(6)
+def _pad_cube_contacts(robot: Robot, d: mujoco.MjData) -> Iterator[tuple[int, int, bool]]:
+    """``(contact index, pad 0 left / 1 right, whether the cube is geom2)`` of every pad-cube contact."""
+    h = robot.handles
+    left, right = int(h.pad_geoms[0]), int(h.pad_geoms[1])
     for i in range(d.ncon):
         c = d.contact[i]
-        pair = (c.geom1, c.geom2)
-        if h.cube_geom not in pair:
-            continue
-        for k, pad in enumerate(h.pad_geoms):
-            if pad in pair:
-                mujoco.mj_contactForce(m, d, i, f)
-                out[k] += f[0]
+        g1, g2 = int(c.geom1), int(c.geom2)
+        if h.cube_geom == g2 and g1 in (left, right):
+            yield i, int(g1 == right), True
+        elif h.cube_geom == g1 and g2 in (left, right):
+            yield i, int(g2 == right), False
+
+
+def pad_load(robot: Robot, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+    """The pads' normal forces and their total force on the cube, as the simulation has them now.
+
+    Returns:
+        ``(normal, force_on_cube)``: the normal force of the cube on the left and right pad (2,) (N), and
+        the total force the pads exert on the cube (3,) in the world (N).
+    """
+    normal, total, f = np.zeros(2), np.zeros(3), np.zeros(6)
+    for i, pad, cube_is_geom2 in _pad_cube_contacts(robot, d):
+        mujoco.mj_contactForce(robot.mj, d, i, f)
+        normal[pad] += f[0]
+        force_on_geom2 = d.contact[i].frame.reshape(3, 3).T @ f[:3]  # frame rows: normal, tangent 1, tangent 2
+        total += force_on_geom2 if cube_is_geom2 else -force_on_geom2
+    return normal, total
+
+
+def pad_forces(robot: Robot, d: mujoco.MjData) -> np.ndarray:
+    """Normal force (N) of the cube on the left and right pad, (2,)."""
+    f, out = np.zeros(6), np.zeros(2)
+    for i, pad, _ in _pad_cube_contacts(robot, d):
+        mujoco.mj_contactForce(robot.mj, d, i, f)
+        out[pad] += f[0]
     return out
 
 
-def pad_contacts(robot: Robot, d: mujoco.MjData) -> tuple[list[Contact], np.ndarray]:
-    """The pad-cube contacts as the simulation has them now, for the force-closure test.
-
-    Returns:
-        ``(contacts, force_on_cube)``: one :class:`~pickplace.grasp.Contact` per MuJoCo contact point
-        between a pad and the cube (world frame, normal pointing into the cube, the contact's own friction
-        coefficients), and the total force the pads exert on the cube (3,) in the world (N).
-    """
-    m, h = robot.mj, robot.handles
+def pad_contacts(robot: Robot, d: mujoco.MjData) -> list[Contact]:
+    """The pad-cube contacts as the simulation has them now, for the force-closure test: one
+    :class:`~pickplace.grasp.Contact` per MuJoCo contact point (world frame, normal pointing into the cube,
+    the contact's own friction coefficients)."""
     contacts: list[Contact] = []
-    total = np.zeros(3)
-    f = np.zeros(6)
-    for i in range(d.ncon):
+    for i, _, cube_is_geom2 in _pad_cube_contacts(robot, d):
         c = d.contact[i]
-        if h.cube_geom not in (c.geom1, c.geom2) or not (c.geom1 in h.pad_geoms or c.geom2 in h.pad_geoms):
-            continue
-        frame = c.frame.reshape(3, 3)  # rows: normal (from geom1 to geom2), tangent 1, tangent 2
-        into_cube = frame[0] if c.geom2 == h.cube_geom else -frame[0]
-        mujoco.mj_contactForce(m, d, i, f)
-        force_on_geom2 = frame.T @ f[:3]
-        total += force_on_geom2 if c.geom2 == h.cube_geom else -force_on_geom2
-        contacts.append(Contact(c.pos.copy(), into_cube, float(c.friction[0]), float(c.friction[2])))
-    return contacts, total
+        normal = c.frame[:3] if cube_is_geom2 else -c.frame[:3]  # the frame's normal points from geom1 to geom2
+        contacts.append(Contact(c.pos.copy(), normal.copy(), float(c.friction[0]), float(c.friction[2])))
+    return contacts
 
 
 def in_contact(robot: Robot, d: mujoco.MjData, min_force_n: float = 0.5) -> bool:

@@ -338,6 +338,24 @@ class PickPlaceMachine:
         self._count(rec)
         return rec
 
+    def _hold_until(self, q: np.ndarray | None, done: Callable[[], bool], timeout_s: float,
+                    min_s: float = 0.0) -> bool:
+        """Hold ``q`` in steps of ``poll_s`` until ``done()`` (checked from ``min_s`` on) or ``timeout_s`` (s).
+
+        ``q`` None holds the arm where it is at each step (it is not driven anywhere).
+
+        Returns:
+            Whether ``done()`` became true in time.
+        """
+        waited = 0.0
+        while True:
+            if waited >= min_s and done():
+                return True
+            if waited >= timeout_s:
+                return False
+            self._hold(self.q if q is None else q, self.cfg.poll_s)
+            waited += self.cfg.poll_s
+
     def _plan_segment(self, name: str, checker_at: Callable[[float], CollisionChecker], q_goal: np.ndarray) -> None:
         """Plan with the full clearance margin; accept the timed trajectory with half of it.
 
@@ -378,9 +396,7 @@ class PickPlaceMachine:
 
     def _free(self, margin_m: float) -> CollisionChecker:
         """A checker for the empty hand, with the world (the cube, anything that moved) as it is now."""
-        checker = CollisionChecker(self.robot, CollisionPolicy(margin_m=margin_m))
-        checker.set_world(self.d)
-        return checker
+        return CollisionChecker(self.robot, CollisionPolicy(margin_m=margin_m), world=self.d)
 
     def _execute(self, phase: Phase) -> None:
         assert self._trajectory is not None
@@ -403,9 +419,10 @@ class PickPlaceMachine:
                 raise PhaseFailed(phase, f"the arm ended {settle.final_error_rad:.4f} rad from the trajectory's "
                                          "end, 0.3 s after it (limit 0.01 rad)")
 
-    def _vertical(self, phase: Phase, target_z: float) -> control.CartesianRecord:
+    def _vertical(self, phase: Phase, target_z: float, hook: control.Hook | None = None) -> control.CartesianRecord:
+        """Move the tcp to ``target_z`` (m); ``hook`` replaces the monitor (and must call it)."""
         rec = control.move_vertical(self.robot, self.d, target_z, self.ctrl, payload=self._payload,
-                                    hook=self.monitor, noise=self.noise)
+                                    hook=hook or self.monitor, noise=self.noise)
         self._count(rec)
         if not rec.reached:
             raise PhaseFailed(phase, f"the tcp stopped {rec.final_height_error_m * 1e3:.2f} mm from its target "
@@ -451,21 +468,19 @@ class PickPlaceMachine:
         self.monitor.watch_cube_at = None  # the pads move it now
         self.monitor.allow_hand_cube = True
         gripper.command(robot, d, True)
-        q_hold = self.q
-        waited = 0.0
-        while True:
-            self._hold(q_hold, cfg.poll_s)
-            waited += cfg.poll_s
-            forces = gripper.pad_forces(robot, d)
-            if (waited >= 5 * cfg.poll_s and gripper.is_settled(robot, d, cfg.finger_settle_speed_m_s)
-                    and np.all(forces >= cfg.min_pad_force_n)):
-                break
-            if waited >= cfg.close_timeout_s:
-                travel = gripper.finger_travel(robot, d)
-                raise GraspFailed(f"the pads did not settle on the cube within {cfg.close_timeout_s:g} s: "
-                                  f"pad forces {forces[0]:.1f} / {forces[1]:.1f} N (need {cfg.min_pad_force_n:g} "
-                                  f"N each), finger travel {travel * 1e3:.1f} mm")
-        contacts, _ = gripper.pad_contacts(robot, d)
+
+        def gripping() -> bool:
+            return (gripper.is_settled(robot, d, cfg.finger_settle_speed_m_s)
+                    and bool(np.all(gripper.pad_forces(robot, d) >= cfg.min_pad_force_n)))
+
+        settled = self._hold_until(self.q, gripping, cfg.close_timeout_s, min_s=5 * cfg.poll_s)
+        forces = gripper.pad_forces(robot, d)
+        if not settled:
+            travel = gripper.finger_travel(robot, d)
+            raise GraspFailed(f"the pads did not settle on the cube within {cfg.close_timeout_s:g} s: "
+                              f"pad forces {forces[0]:.1f} / {forces[1]:.1f} N (need {cfg.min_pad_force_n:g} "
+                              f"N each), finger travel {travel * 1e3:.1f} mm")
+        contacts = gripper.pad_contacts(robot, d)
         cube = self._cube_pose()
         fc = analyze_grasp(contacts, cube.translation, robot.scene.cube_size_m / 2)
         self.out.grip_force_n = float(forces.sum())
@@ -501,8 +516,8 @@ class PickPlaceMachine:
             if monitor.allow_cube_table and d.xpos[h.cube_body][2] > z_cube0 + 0.003:
                 monitor.allow_cube_table = False  # airborne: touching the table again is a failure
             if not monitor.allow_cube_table:  # airborne: only the pads (and gravity) act on the cube
-                _, f = gripper.pad_contacts(self.robot, d)
-                forces.append(float(gripper.pad_forces(self.robot, d).sum()))
+                normal, f = gripper.pad_load(self.robot, d)
+                forces.append(float(normal.sum()))
                 f_z.append(float(f[2]))
                 g_plus_a.append(g + float(d.qacc[cube_az]))
 
@@ -544,9 +559,7 @@ class PickPlaceMachine:
         assert self.configs is not None
         policy = CollisionPolicy(margin_m=margin_m, cube_held=True, allow_cube_table=allow_cube_table,
                                  finger_m=gripper.finger_travel(self.robot, self.d))
-        checker = CollisionChecker(self.robot, policy, T_tcp_cube=self._T_tcp_cube)
-        checker.set_world(self.d)
-        return checker
+        return CollisionChecker(self.robot, policy, world=self.d, T_tcp_cube=self._T_tcp_cube)
 
     def _plan_transport(self) -> Phase:
         """Re-target the place from the cube's measured pose in the hand, then plan to above the goal."""
@@ -596,12 +609,7 @@ class PickPlaceMachine:
                 monitor.allow_cube_table = True  # setting it down
             monitor(d)
 
-        rec = control.move_vertical(self.robot, self.d, float(place.translation[2]), self.ctrl,
-                                    payload=self._payload, hook=hook, noise=self.noise)
-        self._count(rec)
-        if not rec.reached:
-            raise PhaseFailed(Phase.DESCEND_PLACE, f"the tcp stopped {rec.final_height_error_m * 1e3:.2f} mm from "
-                                                   "the place height")
+        self._vertical(Phase.DESCEND_PLACE, float(place.translation[2]), hook)
         return Phase.RELEASE
 
     def _release(self) -> Phase:
@@ -611,23 +619,20 @@ class PickPlaceMachine:
         self._payload = None
         gripper.command(robot, d, False)
         self._release_t = self.monitor.t
-        q_hold = self.q
         geom = gripper.GripperGeometry.measure(robot)
         clear_travel = geom.contact_travel_m(robot.scene.cube_size_m) - cfg.release_clearance_m
-        waited = 0.0
-        while True:
-            self._hold(q_hold, cfg.poll_s)
-            waited += cfg.poll_s
+        cube_v = slice(robot.handles.cube_dof, robot.handles.cube_dof + 3)
+
+        def released() -> bool:
+            return (gripper.finger_travel(robot, d) <= clear_travel and not np.any(gripper.pad_forces(robot, d) > 0.0)
+                    and float(np.linalg.norm(d.qvel[cube_v])) < cfg.cube_rest_speed_m_s)
+
+        if not self._hold_until(self.q, released, cfg.release_timeout_s, min_s=cfg.poll_s):
             forces = gripper.pad_forces(robot, d)
-            travel = gripper.finger_travel(robot, d)
-            cube_speed = float(np.linalg.norm(d.qvel[robot.handles.cube_dof: robot.handles.cube_dof + 3]))
-            if travel <= clear_travel and not np.any(forces > 0.0) and cube_speed < cfg.cube_rest_speed_m_s:
-                break
-            if waited >= cfg.release_timeout_s:
-                raise PhaseFailed(Phase.RELEASE, f"the pads did not clear the cube within {cfg.release_timeout_s:g} "
-                                                 f"s (finger travel {travel * 1e3:.1f} mm, pad forces "
-                                                 f"{forces[0]:.2f} / {forces[1]:.2f} N, cube speed "
-                                                 f"{cube_speed * 1e3:.1f} mm/s)")
+            raise PhaseFailed(Phase.RELEASE, f"the pads did not clear the cube within {cfg.release_timeout_s:g} "
+                                             f"s (finger travel {gripper.finger_travel(robot, d) * 1e3:.1f} mm, pad "
+                                             f"forces {forces[0]:.2f} / {forces[1]:.2f} N, cube speed "
+                                             f"{float(np.linalg.norm(d.qvel[cube_v])) * 1e3:.1f} mm/s)")
         self.monitor.allow_hand_cube = False
         self._measure_place()
         if self.out.place_error_xy_m > cfg.place_tolerance_xy_m:
@@ -779,12 +784,9 @@ class PickPlaceMachine:
         z_safe = scene.table_height_m + scene.cube_size_m + CLEARANCE_M
         if float(self._tcp_pose().translation[2]) < z_safe:
             self._vertical(Phase.RECOVER, z_safe)
-        waited = 0.0
-        while float(np.linalg.norm(d.qvel[robot.handles.cube_dof: robot.handles.cube_dof + 6])) > 0.01:
-            if waited >= cfg.cube_settle_timeout_s:
-                raise PhaseFailed(Phase.RECOVER, f"the cube did not come to rest within {waited:.1f} s")
-            self._hold(self.q, cfg.poll_s)
-            waited += cfg.poll_s
+        cube_v = slice(robot.handles.cube_dof, robot.handles.cube_dof + 6)
+        if not self._hold_until(None, lambda: float(np.linalg.norm(d.qvel[cube_v])) <= 0.01, cfg.cube_settle_timeout_s):
+            raise PhaseFailed(Phase.RECOVER, f"the cube did not come to rest within {cfg.cube_settle_timeout_s:.1f} s")
         self.monitor.allow_hand_cube = False
         cube = self._cube_pose()
         resting_z = scene.table_height_m + scene.cube_size_m / 2
