@@ -44,9 +44,10 @@ def test_centred_soft_finger_pinch_is_force_closure() -> None:
     contacts = pinch(1.0)
     result = analyze_grasp(contacts, CENTRE, HALF)
     assert result.force_closure
-    assert result.method == "qhull"
+    assert result.method in ("qhull", "qhull-joggled")  # which one is the CPU's floating point
     assert result.n_contacts == 2
     assert result.margin == pytest.approx(0.2413, abs=1e-3)
+    assert result.margin == pytest.approx(inscribed_radius(grasp_wrenches(contacts, CENTRE, HALF)), abs=1e-6)
     assert origin_in_hull_lp(grasp_wrenches(contacts, CENTRE, HALF))
     assert is_antipodal(contacts, 1.0)
 
@@ -193,27 +194,105 @@ def test_bad_input_raises_config_error(call, field: str) -> None:
     assert info.value.field == field
 
 
-def test_simulated_face_contacts_that_trip_qhull_are_still_force_closure() -> None:
-    """Eight contacts of a real pinch, as MuJoCo reported them (two 4-point face contacts): qhull's default
-    options reject them with a precision error ("wide merge"); the test joggles and still finds closure."""
+# Eight contacts of a real pinch, as MuJoCo reported them (two 4-point face contacts on opposite faces). On some
+# CPUs qhull's default options reject such near-coplanar, duplicated wrenches with a precision error ("wide
+# merge"), on others they pass: which one happens is the CPU's floating point, not pickplace's behaviour. The
+# tests below assert the behaviour (closure found, the margin checked independently, the LP agreeing) and force
+# each fallback path deterministically by injecting the qhull failure.
+FACE_NORMAL = [0.7125165758653385, 0.701655121997807, -0.00046785828643712714]
+FACE_LEFT = [[0.3290249333035318, 0.1350614092652658, 0.325363379649924],
+             [0.32903183206381564, 0.13507189205863812, 0.3453633750761873],
+             [0.31219337782773565, 0.1521735422546842, 0.3453602188654027],
+             [0.3121864790674518, 0.15216305946131187, 0.3253602234391394]]
+FACE_RIGHT = [[0.3580079036839104, 0.16359408428909414, 0.32533250781947315],
+              [0.35801480244419426, 0.16360456708246648, 0.34533250324573644],
+              [0.34117634820811427, 0.18070621727851255, 0.3453293470349519],
+              [0.3411694494478304, 0.18069573448514023, 0.3253293516086886]]
+FACE_MU = 0.5979383791257202
+FACE_P_REF = [0.33508632112569087, 0.15789522965323538, 0.3353520053484002]
+FACE_SCALE_M = 0.020345096318206104
+
+
+def face_contacts() -> list[Contact]:
+    n = FACE_NORMAL
+    return ([Contact(p, n, FACE_MU, 0.005) for p in FACE_LEFT]
+            + [Contact(p, [-v for v in n], FACE_MU, 0.005) for p in FACE_RIGHT])
+
+
+def inscribed_radius(wrenches: np.ndarray, n_dirs: int = 20000, n_refined: int = 20) -> float:
+    """The Ferrari–Canny margin computed without qhull: the largest origin-centred ball inside the hull has the
+    radius ``min over unit u of max_i w_i . u`` (the hull's support function). Sampled directions, the best
+    ones refined by SLSQP on ``min t s.t. w_i . u <= t, |u| = 1``."""
+    from scipy.optimize import minimize
+
+    u = np.random.default_rng(0).normal(size=(n_dirs, 6))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    support = np.max(u @ wrenches.T, axis=1)
+    constraints = [
+        {"type": "ineq", "fun": lambda x: x[6] - wrenches @ x[:6],
+         "jac": lambda x: np.hstack([-wrenches, np.ones((len(wrenches), 1))])},
+        {"type": "eq", "fun": lambda x: x[:6] @ x[:6] - 1.0, "jac": lambda x: np.append(2.0 * x[:6], 0.0)},
+    ]
+    best = float(support.min())
+    for j in np.argsort(support)[:n_refined]:
+        res = minimize(lambda x: x[6], np.append(u[j], support[j]), jac=lambda x: np.eye(7)[6],
+                       constraints=constraints, method="SLSQP", options={"ftol": 1e-12, "maxiter": 500})
+        direction = res.x[:6] / np.linalg.norm(res.x[:6])
+        best = min(best, float(np.max(wrenches @ direction)))  # any unit direction bounds the radius from above
+    return best
+
+
+def _qhull_failing(monkeypatch: pytest.MonkeyPatch, fail_joggled: bool) -> list[str | None]:
+    """Make pickplace.grasp's qhull raise its precision error for the default options (and for "QJ" too if
+    ``fail_joggled``); returns the list of options it was called with."""
     from scipy.spatial import ConvexHull, QhullError
 
-    n = [0.7125165758653385, 0.701655121997807, -0.00046785828643712714]
-    left = [[0.3290249333035318, 0.1350614092652658, 0.325363379649924],
-            [0.32903183206381564, 0.13507189205863812, 0.3453633750761873],
-            [0.31219337782773565, 0.1521735422546842, 0.3453602188654027],
-            [0.3121864790674518, 0.15216305946131187, 0.3253602234391394]]
-    right = [[0.3580079036839104, 0.16359408428909414, 0.32533250781947315],
-             [0.35801480244419426, 0.16360456708246648, 0.34533250324573644],
-             [0.34117634820811427, 0.18070621727851255, 0.3453293470349519],
-             [0.3411694494478304, 0.18069573448514023, 0.3253293516086886]]
-    mu = 0.5979383791257202
-    contacts = ([Contact(p, n, mu, 0.005) for p in left] + [Contact(p, [-v for v in n], mu, 0.005) for p in right])
-    p_ref = [0.33508632112569087, 0.15789522965323538, 0.3353520053484002]
-    wrenches = grasp_wrenches(contacts, p_ref, 0.020345096318206104)
-    with pytest.raises(QhullError):
-        ConvexHull(wrenches)  # the precision error this test is about
-    result = analyze_grasp(contacts, p_ref, 0.020345096318206104)
-    assert result.force_closure and result.method == "qhull-joggled"
+    import pickplace.grasp as grasp_module
+
+    calls: list[str | None] = []
+
+    def hull(points: np.ndarray, qhull_options: str | None = None) -> ConvexHull:
+        calls.append(qhull_options)
+        if qhull_options is None or (fail_joggled and "QJ" in qhull_options):
+            raise QhullError("QH6271 qhull precision error (injected by the test)")
+        return ConvexHull(points, qhull_options=qhull_options)
+
+    monkeypatch.setattr(grasp_module, "ConvexHull", hull)
+    return calls
+
+
+def test_simulated_face_contacts_are_force_closure_with_a_checked_margin() -> None:
+    """Whatever qhull does with these contacts on this CPU, pickplace finds closure, its margin is a true
+    inscribed radius (no direction's support is below it, and a facet touches it), and the LP agrees."""
+    contacts = face_contacts()
+    wrenches = grasp_wrenches(contacts, FACE_P_REF, FACE_SCALE_M)
+    result = analyze_grasp(contacts, FACE_P_REF, FACE_SCALE_M)
+    assert result.force_closure and result.n_contacts == 8
+    assert result.method in ("qhull", "qhull-joggled")
     assert result.margin == pytest.approx(0.457, abs=0.01)
+    assert result.margin == pytest.approx(inscribed_radius(wrenches), abs=1e-6)  # computed without qhull
     assert origin_in_hull_lp(wrenches)  # the LP agrees
+
+
+def test_a_qhull_precision_error_is_retried_joggled(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The precision error is injected: the test no longer depends on whether this CPU's qhull trips."""
+    contacts = face_contacts()
+    plain = analyze_grasp(contacts, FACE_P_REF, FACE_SCALE_M)
+    calls = _qhull_failing(monkeypatch, fail_joggled=False)
+    result = analyze_grasp(contacts, FACE_P_REF, FACE_SCALE_M)
+    assert calls == [None, "QJ"]
+    assert result.force_closure and result.method == "qhull-joggled"
+    assert result.margin == pytest.approx(plain.margin, abs=1e-6)  # joggling moves it by ~1e-11 relative
+    assert origin_in_hull_lp(grasp_wrenches(contacts, FACE_P_REF, FACE_SCALE_M))
+
+
+def test_when_joggling_fails_too_the_lp_decides(monkeypatch: pytest.MonkeyPatch) -> None:
+    calls = _qhull_failing(monkeypatch, fail_joggled=True)
+    inside = analyze_grasp(face_contacts(), FACE_P_REF, FACE_SCALE_M)
+    assert calls == [None, "QJ"]
+    assert inside.force_closure and inside.method == "lp" and inside.margin == 0.0
+    mu = 0.1  # the same failure on a grip outside its friction cones: the LP says no
+    dy = HALF * math.tan(math.radians(20.0))
+    outside = analyze_grasp([Contact([-HALF, -dy, 0.0], [1.0, 0.0, 0.0], mu, TORSION_M),
+                             Contact([HALF, dy, 0.0], [-1.0, 0.0, 0.0], mu, TORSION_M)], CENTRE, HALF)
+    assert not outside.force_closure and outside.method == "lp"
