@@ -1,19 +1,23 @@
 # pickplace: `make run` runs the main job, `make test` runs the whole test suite.
-# Both create .venv (if missing) and install the package into it; only Python 3.11+, pip and make are needed.
+# Both create .venv (if missing) and install the package into it with the versions locked in constraints.txt;
+# only Python 3.11+, pip and make are needed. `make lock` re-resolves the newest versions pyproject.toml allows
+# (all extras) in a throw-away venv and rewrites constraints.txt; run `make test` after it, commit if green.
 
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
+LOCK   := constraints.txt
+PIP    := $(BIN)/python -m pip install --quiet --constraint $(LOCK)
 
-.PHONY: run test lint bench clean
+.PHONY: run test lint bench lock clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 
-$(STAMP): pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[dev]"
+$(STAMP): pyproject.toml $(LOCK) | $(BIN)/python
+	$(PIP) --upgrade pip
+	$(PIP) -e ".[dev]"
 	touch $(STAMP)
 
 run: $(STAMP)
@@ -26,8 +30,18 @@ lint: $(STAMP)
 	$(BIN)/ruff check .
 
 bench: $(STAMP)
-	$(BIN)/python -m pip install --quiet -e ".[dev,bench]"
+	$(PIP) -e ".[dev,bench]"
 	$(BIN)/pickplace bench planning
 
+lock:
+	rm -rf .lock-venv
+	$(PYTHON) -m venv .lock-venv
+	.lock-venv/bin/python -m pip install --quiet --upgrade pip
+	.lock-venv/bin/python -m pip install --quiet -e ".[dev,bench,video,ray]"
+	{ echo "# Versions the test suite passes with; written by 'make lock' with $$(.lock-venv/bin/python -V)" \
+	       "on $$(uname -sm), $$(date -u +%Y-%m-%d)."; \
+	  .lock-venv/bin/python -m pip freeze --all --exclude-editable; } > $(LOCK)
+	rm -rf .lock-venv
+
 clean:
-	rm -rf $(VENV) .pytest_cache .ruff_cache build src/*.egg-info
+	rm -rf $(VENV) .lock-venv .pytest_cache .ruff_cache build src/*.egg-info
