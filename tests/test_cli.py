@@ -46,6 +46,17 @@ def _check_hold(inspect_json: dict) -> None:
     assert hold["safety_factor"] >= 3
     assert hold["peak_acceleration_m_s2"] >= 3.0
     assert hold["trials"][0]["cube_mass_kg"] == pytest.approx(0.150, abs=1e-12)
+    # the safety factor at the lowest friction of the default randomization as well as at the scene's
+    by_mu = {m["cube_friction"]: m for m in hold["by_friction"]}
+    assert set(by_mu) == {0.6, 1.0}
+    assert by_mu[1.0]["safety_factor"] == hold["safety_factor"]
+    assert by_mu[0.6]["safety_factor"] >= 8 and by_mu[1.0]["safety_factor"] >= 16
+    for m in by_mu.values():
+        print(f"mu {m['cube_friction']}: safety factor {m['safety_factor']}, heaviest held "
+              f"{m['heaviest_held_kg']:.2f} kg, Coulomb limit {m['coulomb_limit_kg']:.2f} kg")
+        lost = [t["cube_mass_kg"] for t in m["trials"] if not t["held"]]
+        assert m["heaviest_held_kg"] >= 0.6 * m["coulomb_limit_kg"]  # it holds what friction allows
+        assert not lost or lost[0] >= 0.9 * m["coulomb_limit_kg"]  # and loses nothing friction could carry
 
 
 def _check_gripper_and_model(inspect_json: dict) -> None:

@@ -275,3 +275,56 @@ def test_timeouts_and_tracking_bounds_raise(robot: Robot, configs: GraspConfigur
     with pytest.raises(ControlError, match="joint error") as info:
         control.track(robot, _data_at(robot, STRETCHED_Q), traj, ControlConfig())
     assert info.value.record.steps == 0
+
+
+# --------------------------------------------------------------------------- #
+# torque limits
+# --------------------------------------------------------------------------- #
+
+
+def _actuator_torque(robot: Robot, d: mujoco.MjData) -> np.ndarray:
+    return d.actuator_force[robot.handles.arm_actuators].copy()
+
+
+def test_joint_torques_beyond_the_limits_are_clipped_and_counted(robot: Robot) -> None:
+    """A stiff hold 0.08 rad away asks for ~8000 N m: every torque sent is within the UR5e's limits, and the
+    clipped steps are counted."""
+    limits = np.asarray(robot.torque_limits_nm)
+    d = _data_at(robot, robot.home_q)
+    stiff = ControlConfig(joint_kp_nm_rad=(1e5,) * 6)
+    applied = []
+    rec = control.hold(robot, d, robot.home_q + 0.08, 0.05, stiff, hook=lambda d: applied.append(
+        _actuator_torque(robot, d)))
+    print(f"\nstiff hold: {rec.saturation_events}/{rec.steps} steps clipped, |tau| max "
+          f"{np.abs(rec.tau).max():.1f} N m (limits {limits.tolist()})")
+    assert rec.saturation_events >= rec.steps // 2  # the error stays large for most of 50 ms
+    assert np.all(np.abs(rec.tau) <= limits + 1e-9)
+    assert np.max(np.abs(rec.tau) / limits) == pytest.approx(1.0, abs=1e-9)  # it did reach a limit
+    assert np.all(np.abs(np.array(applied)) <= limits + 1e-9)
+
+
+def test_cartesian_torques_beyond_the_limits_are_clipped_and_counted(robot: Robot,
+                                                                     configs: GraspConfigurations) -> None:
+    """A 5 cm vertical move in 30 ms (peak 320 m/s²) needs far more than the motors give: clipped and counted."""
+    limits = np.asarray(robot.torque_limits_nm)
+    d = _data_at(robot, configs.pregrasp.q)
+    z = configs.targets.pregrasp.translation[2] + 0.05
+    rec = control.move_vertical(robot, d, z, ControlConfig(max_tcp_error_m=1.0), duration_s=0.03,
+                                raise_on_timeout=False)
+    print(f"\nfast vertical move: {rec.saturation_events}/{rec.steps} steps clipped, |tau| max "
+          f"{np.abs(rec.tau).max():.1f} N m, tcp error max {rec.position_error_max_m * 1e3:.1f} mm")
+    assert rec.saturation_events >= 10
+    assert np.all(np.abs(rec.tau) <= limits + 1e-9)
+    assert rec.position_error_max_m > 1e-3  # the arm could not follow
+
+
+def test_cartesian_tracking_error_is_the_distance_to_the_reference(robot: Robot,
+                                                                   configs: GraspConfigurations) -> None:
+    """The record's tcp error is measured: recomputed here from its own samples of z and the fixed x, y."""
+    d = _data_at(robot, configs.pregrasp.q)
+    start = _tcp(robot, d)
+    rec = control.move_vertical(robot, d, start[2] - 0.15, ControlConfig())
+    z_err = np.abs(rec.z - rec.z_ref)
+    assert rec.position_error_max_m >= z_err.max() - 1e-12  # the distance is at least the height error
+    assert rec.position_error_max_m <= math.hypot(z_err.max(), rec.lateral_drift_max_m) + 1e-12
+    assert 0 < rec.position_error_rms_m <= rec.position_error_max_m < 5e-4

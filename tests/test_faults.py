@@ -118,6 +118,38 @@ def test_flipped_tcp_offset_rejected_before_moving() -> None:
     assert r.cycle_time_s == 0.0
 
 
+def test_gripper_turned_on_the_flange_places_the_cube_turned_and_release_says_so() -> None:
+    """The tcp is believed turned 0.2 rad about the tool axis: the cube is grasped and set down turned by as much,
+    at the right place. Only the yaw check can catch it: the cube rests within 1 mm of B, on the table."""
+    r = _run(FaultConfig(tcp_yaw_error_rad=0.2), recovery=True)
+    _report("gripper turned 0.2 rad", r)
+    assert (r.failure_phase, r.failure_kind) == ("RELEASE", "PhaseFailed")
+    assert "yaw" in r.failure_reason
+    assert r.place_error_yaw_rad == pytest.approx(0.2, abs=0.05)
+    assert r.place_error_xy_m < 1e-3 and abs(r.place_error_z_m) < 1e-3
+
+
+def test_a_small_gripper_turn_is_within_the_yaw_tolerance_and_measured() -> None:
+    r = _run(FaultConfig(tcp_yaw_error_rad=-0.02), recovery=False)
+    _report("gripper turned -0.02 rad", r)
+    assert r.success, r.failure_reason
+    assert r.place_error_yaw_rad == pytest.approx(-0.02, abs=0.005)  # measured, not assumed
+
+
+def test_cube_bumped_after_the_release_fails_the_place() -> None:
+    """A 2 N push for 0.1 s on the placed cube as the arm retracts: it slides away after the release check passed.
+    The place counts only if the cube still lies at B 1 s after the release. A 1 N push is below friction
+    (μ m g = 1.47 N) and moves nothing."""
+    r = _run(FaultConfig(placed_push_n=(2.0, 0.0)), recovery=True)
+    _report("cube bumped after the release", r)
+    assert (r.failure_phase, r.failure_kind) == ("RELEASE", "PhaseFailed")
+    assert "moved after the release" in r.failure_reason
+    assert r.place_error_xy_m < 1e-3 < 3e-3 < r.final_place_error_xy_m  # it was placed, then it moved
+    r = _run(FaultConfig(placed_push_n=(1.0, 0.0)), recovery=False)
+    assert r.success, r.failure_reason
+    assert r.final_place_error_xy_m == pytest.approx(r.place_error_xy_m, abs=5e-5)
+
+
 def test_heavier_cube_is_weighed_and_compensated() -> None:
     """The cube is 5x heavier than believed: the lift sags 2 mm; the pads weigh it and the payload is fixed."""
     faults = FaultConfig(cube_mass_scale=5.0)
@@ -187,7 +219,8 @@ def test_fault_config_validation_names_the_field() -> None:
     from pickplace.errors import ConfigError
 
     for field, value in [("pad_friction_scale", -1.0), ("cube_mass_scale", 0.0), ("transport_push_n", (1.0, 2.0)),
-                         ("joint_noise_rad", float("nan")), ("intruder", "yes")]:
+                         ("joint_noise_rad", float("nan")), ("intruder", "yes"),
+                         ("tcp_yaw_error_rad", 1.0), ("placed_push_n", (1.0, 2.0, 3.0))]:
         with pytest.raises(ConfigError, match=rf"faults\.{field}"):
             FaultConfig(**{field: value})
     with pytest.raises(ConfigError, match=r"faults\.bogus"):

@@ -49,6 +49,7 @@ def _scene_from_args(args: argparse.Namespace) -> SceneConfig:
 def inspect_data(scene: SceneConfig) -> dict[str, object]:
     """Everything ``pickplace inspect`` reports, as JSON-ready data."""
     from pickplace import model
+    from pickplace.campaign import RandomizationSpec
     from pickplace.configurations import solve_grasp_configurations
     from pickplace.gripper import GripperGeometry, hold_margin
 
@@ -66,6 +67,9 @@ def inspect_data(scene: SceneConfig) -> dict[str, object]:
     configs = solve_grasp_configurations(robot)
     margin = hold_margin(scene)
     nominal = margin.nominal
+    lowest = RandomizationSpec().cube_friction[0]  # the lowest friction of the default randomization
+    margins = [margin] if lowest == scene.cube_friction else [
+        hold_margin(dataclasses.replace(scene, cube_friction=lowest)), margin]
     return {
         "version": __version__,
         "model": {
@@ -98,6 +102,13 @@ def inspect_data(scene: SceneConfig) -> dict[str, object]:
             "safety_factor": margin.safety_factor,
             "trials": [{"cube_mass_kg": r.cube_mass_kg, "held": r.held, "slip_m": r.slip_m,
                         "grip_force_n": r.grip_force_n} for r in margin.results],
+            "by_friction": [
+                {"cube_friction": m.cube_friction, "safety_factor": m.safety_factor,
+                 "heaviest_held_kg": m.safety_factor * scene.cube_mass_kg, "coulomb_limit_kg": m.coulomb_limit_kg,
+                 "trials": [{"cube_mass_kg": r.cube_mass_kg, "held": r.held, "slip_m": r.slip_m}
+                            for r in m.results]}
+                for m in margins
+            ],
         },
     }
 
@@ -152,9 +163,13 @@ def _cmd_inspect(args: argparse.Namespace, console: Console) -> int:
     console.print(t)
     console.print(
         f"nominal cube: slip {h['slip_m'] * 1e3:.3f} mm, grip force {h['grip_force_n']:.1f} N per pad, "
-        f"peak acceleration {h['peak_acceleration_m_s2']:.2f} m/s², safety factor ≥ {h['safety_factor']:g} "
-        "(heaviest cube held / cube mass)"
+        f"peak acceleration {h['peak_acceleration_m_s2']:.2f} m/s²"
     )
+    for m in h["by_friction"]:
+        console.print(
+            f"friction μ {m['cube_friction']:g}: safety factor ≥ {m['safety_factor']:g} (heaviest cube held "
+            f"{m['heaviest_held_kg']:.2f} kg / cube mass; Coulomb limit 2μF/(g + a) = {m['coulomb_limit_kg']:.2f} "
+            "kg)", highlight=False)
     return 0
 
 
@@ -225,6 +240,19 @@ def _mm(value: float | None) -> str:
     return "—" if value is None or value != value else f"{value * 1e3:.3f} mm"
 
 
+#: The conditions every figure of ``pickplace run`` holds under (the only robot profile so far).
+IDEAL_CONDITIONS = ("Ideal robot: the cube's pose is read from the simulator (exact, no delay), the controller's "
+                    "dynamics model is the simulated arm's own, control runs at the 1 kHz physics rate without "
+                    "delay. Tracking errors: every control loop of every phase; --json has them per phase.")
+
+
+def _worst(result: EpisodeResult, figure: str) -> str:
+    """`` (worst: PHASE)`` for the phase with the largest ``figure`` of ``result.tracking_by_phase``."""
+    values = {p: getattr(t, figure) for p, t in result.tracking_by_phase.items()
+              if getattr(t, figure) == getattr(t, figure)}  # not NaN
+    return f" (worst: {max(values, key=values.__getitem__)})" if values else ""
+
+
 def print_episode(result: EpisodeResult, console: Console) -> None:
     """The phase timeline and the results table of one episode."""
     t = Table(title=f"Phase timeline (seed {result.seed})")
@@ -236,7 +264,7 @@ def print_episode(result: EpisodeResult, console: Console) -> None:
         t.add_row(phase, f"{start:.3f}", f"{dur:.3f}", status)
     console.print(t)
 
-    t = Table(title="Results")
+    t = Table(title="Results", caption=IDEAL_CONDITIONS)
     t.add_column("measure")
     t.add_column("design note", justify="right")
     t.add_column("pickplace", justify="right")
@@ -247,8 +275,12 @@ def print_episode(result: EpisodeResult, console: Console) -> None:
     t.add_row("place error xy 1 s after release", "—", _mm(result.final_place_error_xy_m))
     t.add_row("place error z / yaw", "—", f"{_mm(result.place_error_z_m)} / {result.place_error_yaw_rad:.2e} rad")
     t.add_row("cycle time (simulated)", DESIGN_NOTE["cycle_time"], f"{result.cycle_time_s:.3f} s")
-    t.add_row("joint tracking error max / rms", DESIGN_NOTE["tracking"],
-              f"{result.tracking_error_max_rad * 1e3:.3f} / {result.tracking_error_rms_rad * 1e3:.3f} mrad")
+    t.add_row("joint tracking error max / rms (trajectories and holds)", DESIGN_NOTE["tracking"],
+              f"{result.tracking_error_max_rad * 1e3:.3f} / {result.tracking_error_rms_rad * 1e3:.3f} mrad"
+              f"{_worst(result, 'joint_error_max_rad')}")
+    t.add_row("tcp tracking error max (Cartesian moves)", "—",
+              f"{_mm(result.tcp_tracking_error_max_m)} / {result.tcp_orientation_error_max_rad * 1e3:.3f} mrad"
+              f"{_worst(result, 'tcp_position_error_max_m')}")
     t.add_row("grip: pad normal force during lift", "—", f"{result.lift_grip_force_n:.1f} N")
     t.add_row("grip: load carried by the pads (m·g)", DESIGN_NOTE["grip_force"],
               f"{result.lift_load_n:.2f} N ({mg:.2f} N)")

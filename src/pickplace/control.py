@@ -500,11 +500,17 @@ class TrackingRecord:
 class CartesianRecord:
     """What :func:`move_vertical` measured.
 
+    Errors are measured at every control step (the state before the step) and at the end, against the
+    reference: the minimum-jerk height, the start (x, y) and the start orientation.
+
     Attributes:
         reached: The tcp came within the height tolerance at below the settle speed after the profile.
         final_height_error_m: Tcp height minus target height at the end (m), signed.
         lateral_drift_max_m: Largest horizontal distance of the tcp from its start (x, y) (m).
-        orientation_error_max_rad: Largest rotation of the tcp away from its start orientation (rad).
+        orientation_error_max_rad: Largest rotation of the tcp away from its start orientation (rad), which is
+            the orientation reference.
+        position_error_max_m: Largest distance of the tcp from its reference position (m).
+        position_error_rms_m: RMS distance of the tcp from its reference position (m).
         saturation_events: Control steps in which at least one torque was clipped.
         duration_s: Simulated time (s).
         steps: Control steps taken.
@@ -520,6 +526,8 @@ class CartesianRecord:
     final_height_error_m: float
     lateral_drift_max_m: float
     orientation_error_max_rad: float
+    position_error_max_m: float
+    position_error_rms_m: float
     saturation_events: int
     duration_s: float
     steps: int
@@ -529,6 +537,65 @@ class CartesianRecord:
     z_ref: np.ndarray = field(repr=False)
     q: np.ndarray = field(repr=False)
     tau: np.ndarray = field(repr=False)
+
+
+@dataclass(frozen=True)
+class PhaseTracking:
+    """Tracking errors of every control loop that ran in one phase (or in a whole episode).
+
+    Joint-space loops (trajectories and holds) are measured in joint space, Cartesian moves at the tcp; a
+    figure is NaN when no loop of its kind ran.
+
+    Attributes:
+        joint_error_max_rad: Largest ``|q_ref - q|`` over joints and steps of the joint-space loops (rad).
+        joint_error_rms_rad: RMS of ``q_ref - q`` over joints and steps of those loops (rad).
+        tcp_position_error_max_m: Largest distance of the tcp from its reference in the Cartesian moves (m).
+        tcp_orientation_error_max_rad: Largest rotation of the tcp away from its reference orientation in the
+            Cartesian moves (rad).
+        joint_steps: Control steps of joint-space loops.
+        cartesian_steps: Control steps of Cartesian moves.
+    """
+
+    joint_error_max_rad: float = math.nan
+    joint_error_rms_rad: float = math.nan
+    tcp_position_error_max_m: float = math.nan
+    tcp_orientation_error_max_rad: float = math.nan
+    joint_steps: int = 0
+    cartesian_steps: int = 0
+
+
+class TrackingTally:
+    """Adds up the records of control loops into a :class:`PhaseTracking` (the one mutable piece)."""
+
+    def __init__(self) -> None:
+        self._joint_max = self._tcp_max = self._rot_max = -math.inf
+        self._joint_sq = 0.0
+        self._joint_n = 0
+        self._joint_steps = self._cartesian_steps = 0
+
+    def add(self, rec: TrackingRecord | CartesianRecord) -> None:
+        """Count one loop's record."""
+        if isinstance(rec, TrackingRecord):
+            samples = (rec.steps + 1) * N_ARM
+            self._joint_max = max(self._joint_max, rec.max_error_rad)
+            self._joint_sq += rec.rms_error_rad**2 * samples
+            self._joint_n += samples
+            self._joint_steps += rec.steps
+        else:
+            self._tcp_max = max(self._tcp_max, rec.position_error_max_m)
+            self._rot_max = max(self._rot_max, rec.orientation_error_max_rad)
+            self._cartesian_steps += rec.steps
+
+    def result(self) -> PhaseTracking:
+        """The errors so far."""
+        def finite(v: float) -> float:
+            return v if math.isfinite(v) else math.nan
+
+        return PhaseTracking(
+            joint_error_max_rad=finite(self._joint_max),
+            joint_error_rms_rad=math.sqrt(self._joint_sq / self._joint_n) if self._joint_n else math.nan,
+            tcp_position_error_max_m=finite(self._tcp_max), tcp_orientation_error_max_rad=finite(self._rot_max),
+            joint_steps=self._joint_steps, cartesian_steps=self._cartesian_steps)
 
 
 # --------------------------------------------------------------------------- #
@@ -766,6 +833,7 @@ def move_vertical(
     limits = arm.torque_limits_nm
     p_ref, v_ref, a_ref = p0.copy(), np.zeros(3), np.zeros(3)
     z_log = np.empty(n_max + 1)
+    pos_err_log = np.empty(n_max + 1)
     q_log = np.empty((n_max + 1, N_ARM))
     tau_log = np.empty((n_max, N_ARM))
     saturated = 0
@@ -773,9 +841,12 @@ def move_vertical(
     reached = False
 
     def record(steps: int, z_now: float) -> CartesianRecord:
+        pos = pos_err_log[: steps + 1]
         return CartesianRecord(
             reached=reached, final_height_error_m=z_now - target_z_m, lateral_drift_max_m=drift,
-            orientation_error_max_rad=rot_err, saturation_events=saturated, duration_s=steps * dt, steps=steps,
+            orientation_error_max_rad=rot_err, position_error_max_m=float(pos.max()),
+            position_error_rms_m=float(np.sqrt(np.mean(pos**2))), saturation_events=saturated,
+            duration_s=steps * dt, steps=steps,
             profile_duration_s=float(T), t=np.arange(steps + 1) * dt, z=z_log[: steps + 1].copy(),
             z_ref=z_ref[: steps + 1].copy(), q=q_log[: steps + 1].copy(), tau=tau_log[:steps].copy())
 
@@ -798,6 +869,7 @@ def move_vertical(
         drift = max(drift, math.hypot(x - x0, y - y0))
         rot_err = max(rot_err, math.sqrt(rx * rx + ry * ry + rz * rz))
         pos_err = math.sqrt(ex * ex + ey * ey + ez * ez)
+        pos_err_log[k] = pos_err
         if not pos_err <= tol_e:  # also catches NaN
             raise ControlError("move_vertical", f"tcp error {pos_err * 1e3:.3g} mm exceeds {tol_e * 1e3:.3g} mm "
                                                 f"at t = {k * dt:.3f} s", record(k, z))
@@ -836,7 +908,9 @@ __all__ = [
     "ControlConfig",
     "Hook",
     "Payload",
+    "PhaseTracking",
     "TrackingRecord",
+    "TrackingTally",
     "arm_model",
     "cartesian_impedance",
     "hold",

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from pickplace.config import SceneConfig, from_mapping
-from pickplace.control import ControlConfig
+from pickplace.control import ControlConfig, PhaseTracking
 from pickplace.errors import ConfigError
 from pickplace.faults import FaultConfig, apply_model_faults
 from pickplace.ik import IKConfig
@@ -120,6 +120,8 @@ _SECTIONS: dict[str, type] = {"scene": SceneConfig, "machine": MachineConfig, "c
 
 
 def _plain(value: Any) -> Any:
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return _plain(dataclasses.asdict(value))
     if isinstance(value, dict):
         return {k: _plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
@@ -134,7 +136,9 @@ class EpisodeResult:
     """What one episode did, measured. Lengths in m, angles in rad, times in s, forces in N.
 
     Attributes:
-        success: The cube was placed at the goal and the arm returned home, every check passing.
+        success: The cube was placed at the goal and the arm returned home, every check passing, and the cube
+            still lay within ``machine.place_tolerance_xy_m`` of the goal ``machine.stable_after_release_s``
+            after the release.
         failure_phase: Name of the phase that failed, or None.
         failure_reason: What failed, with the numbers, or None.
         failure_kind: The error behind the failure (e.g. ``"UnreachableTarget"``, ``"GraspFailed"``), or None.
@@ -156,8 +160,13 @@ class EpisodeResult:
         final_place_error_xy_m: Horizontal error ``machine.stable_after_release_s`` after the release.
         ik_position_error_m: Largest tcp position residual of the IK solutions.
         ik_orientation_error_rad: Largest tcp orientation residual of the IK solutions.
-        tracking_error_max_rad: Largest joint tracking error over every trajectory.
-        tracking_error_rms_rad: RMS joint tracking error over every trajectory.
+        tracking_error_max_rad: Largest joint tracking error ``|q_ref - q|`` of every joint-space loop of every
+            phase: the planned trajectories and the holds (while the gripper closes or opens, after a push...).
+        tracking_error_rms_rad: RMS joint tracking error over the same loops.
+        tcp_tracking_error_max_m: Largest distance of the tcp from its reference in the Cartesian moves
+            (DESCEND, LIFT, DESCEND_PLACE, RETRACT and the back-offs of a recovery).
+        tcp_orientation_error_max_rad: Largest rotation of the tcp from its reference in those moves.
+        tracking_by_phase: The tracking errors of each phase that ran a control loop, by phase name.
         grip_force_n: Sum of the pads' normal forces when the grip settled.
         lift_grip_force_n: Mean sum of the pads' normal forces while the cube is lifted off the table.
         lift_load_n: Weight carried by the pads while lifting (their vertical force minus m times the cube's
@@ -197,6 +206,9 @@ class EpisodeResult:
     ik_orientation_error_rad: float
     tracking_error_max_rad: float
     tracking_error_rms_rad: float
+    tcp_tracking_error_max_m: float
+    tcp_orientation_error_max_rad: float
+    tracking_by_phase: dict[str, PhaseTracking]
     grip_force_n: float
     lift_grip_force_n: float
     lift_load_n: float
@@ -292,8 +304,11 @@ def _result(out: MachineOutcome, config: EpisodeConfig, seed: int, wall: float, 
         final_place_error_xy_m=out.final_place_error_xy_m,
         ik_position_error_m=out.ik_position_error_m,
         ik_orientation_error_rad=out.ik_orientation_error_rad,
-        tracking_error_max_rad=out.tracking_error_max_rad,
-        tracking_error_rms_rad=out.tracking_error_rms_rad,
+        tracking_error_max_rad=out.tracking_total.joint_error_max_rad,
+        tracking_error_rms_rad=out.tracking_total.joint_error_rms_rad,
+        tcp_tracking_error_max_m=out.tracking_total.tcp_position_error_max_m,
+        tcp_orientation_error_max_rad=out.tracking_total.tcp_orientation_error_max_rad,
+        tracking_by_phase=dict(out.tracking),
         grip_force_n=out.grip_force_n,
         lift_grip_force_n=out.lift_grip_force_n,
         lift_load_n=out.lift_load_n,

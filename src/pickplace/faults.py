@@ -36,9 +36,15 @@ class FaultConfig:
         cube_mass_scale: True mass of the cube relative to what the machine believes (payload compensation).
         tcp_offset_error_m: Error of the tcp offset in the robot's kinematic model, along the tool axis: the
             machine believes the tcp is this much further out than it is (-0.2 m flips the 0.1 m offset).
+        tcp_yaw_error_rad: Error of the tcp orientation in the robot's kinematic model, about the tool axis (a
+            gripper mounted turned on the flange): the machine believes the tcp frame is turned this much
+            further than it is, so it grasps and places turned by this angle.
         pre_pick_push_n: Horizontal force (x, y) on the resting cube once it has been observed, while the arm
             approaches (the cube is not where it was seen).
         pre_pick_push_s: How long that push lasts.
+        placed_push_n: Horizontal force (x, y) on the placed cube as the arm starts to retract (it is bumped
+            after the release check).
+        placed_push_s: How long that push lasts.
         transport_push_n: Force (x, y, z) on the cube while it is carried.
         transport_push_start_s: When the transport push starts, after the transport trajectory starts.
         transport_push_s: How long the transport push lasts (0: no push).
@@ -50,8 +56,11 @@ class FaultConfig:
     pad_softness_scale: float = 1.0
     cube_mass_scale: float = 1.0
     tcp_offset_error_m: float = 0.0
+    tcp_yaw_error_rad: float = 0.0
     pre_pick_push_n: tuple[float, float] = (0.0, 0.0)
     pre_pick_push_s: float = 0.1
+    placed_push_n: tuple[float, float] = (0.0, 0.0)
+    placed_push_s: float = 0.1
     transport_push_n: tuple[float, float, float] = (0.0, 0.0, 0.0)
     transport_push_start_s: float = 0.2
     transport_push_s: float = 0.0
@@ -68,10 +77,15 @@ class FaultConfig:
                                                   lo_open=True))
         set_(self, "tcp_offset_error_m", check_range("faults.tcp_offset_error_m", self.tcp_offset_error_m,
                                                      -0.3, 0.3, unit="m"))
+        set_(self, "tcp_yaw_error_rad", check_range("faults.tcp_yaw_error_rad", self.tcp_yaw_error_rad,
+                                                    -math.pi / 4, math.pi / 4, unit="rad"))
         set_(self, "pre_pick_push_n", check_vector("faults.pre_pick_push_n", self.pre_pick_push_n, 2, -200.0,
                                                    200.0, unit="N"))
         set_(self, "pre_pick_push_s", check_range("faults.pre_pick_push_s", self.pre_pick_push_s, 0.0, 2.0,
                                                   unit="s"))
+        set_(self, "placed_push_n", check_vector("faults.placed_push_n", self.placed_push_n, 2, -200.0, 200.0,
+                                                 unit="N"))
+        set_(self, "placed_push_s", check_range("faults.placed_push_s", self.placed_push_s, 0.0, 2.0, unit="s"))
         set_(self, "transport_push_n", check_vector("faults.transport_push_n", self.transport_push_n, 3, -200.0,
                                                     200.0, unit="N"))
         set_(self, "transport_push_start_s", check_range("faults.transport_push_start_s",
@@ -111,9 +125,11 @@ def apply_model_faults(robot: Robot, faults: FaultConfig) -> None:
         m.body_mass[b] *= faults.cube_mass_scale
         m.body_inertia[b] *= faults.cube_mass_scale
         mujoco.mj_setConst(m, mujoco.MjData(m))  # derived quantities (e.g. body_invweight0) follow the mass
-    if faults.tcp_offset_error_m != 0.0:
+    if faults.tcp_offset_error_m != 0.0 or faults.tcp_yaw_error_rad != 0.0:
         frame = robot.pin.frames[robot.pin_tcp_frame]
         frame.placement.translation = frame.placement.translation + np.array([0.0, 0.0, faults.tcp_offset_error_m])
+        c, s = math.cos(faults.tcp_yaw_error_rad), math.sin(faults.tcp_yaw_error_rad)
+        frame.placement.rotation = frame.placement.rotation @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         robot.pin.frames[robot.pin_tcp_frame] = frame
     if faults.active:
         log.info("faults applied to the model: %s", faults)
@@ -134,6 +150,7 @@ class FaultInjector:
                                                                             INTRUDER)])
         self._pre_pick_t0: float | None = None
         self._transport_t0: float | None = None
+        self._placed_t0: float | None = None
         self.intruder_placed = False
 
     def pushing(self, phase: str, t_s: float) -> np.ndarray:
@@ -144,6 +161,11 @@ class FaultInjector:
                 self._pre_pick_t0 = t_s
             if t_s - self._pre_pick_t0 < f.pre_pick_push_s:
                 return np.array([*f.pre_pick_push_n, 0.0])
+        if phase == "RETRACT" and f.placed_push_s > 0 and any(f.placed_push_n):
+            if self._placed_t0 is None:
+                self._placed_t0 = t_s
+            if t_s - self._placed_t0 < f.placed_push_s:
+                return np.array([*f.placed_push_n, 0.0])
         if phase == "EXEC_TRANSPORT" and f.transport_push_s > 0:
             if self._transport_t0 is None:
                 self._transport_t0 = t_s

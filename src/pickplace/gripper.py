@@ -355,11 +355,16 @@ class HoldMargin:
         nominal: The result at the scene's cube mass.
         results: Every mass tried, in order.
         safety_factor: Heaviest cube held / nominal mass (a lower bound: the multiples tried are discrete).
+        cube_friction: The friction coefficient of the test (the scene's).
+        coulomb_limit_kg: The heaviest cube Coulomb friction can carry through the motion,
+            ``2 mu F_pad / (g + a_peak)`` with the nominal run's pad force and peak acceleration (kg).
     """
 
     nominal: HoldResult
     results: tuple[HoldResult, ...]
     safety_factor: float
+    cube_friction: float
+    coulomb_limit_kg: float
 
 
 def hold_margin(
@@ -387,4 +392,7 @@ def hold_margin(
         if not r.held:
             break
         best = k
-    return HoldMargin(nominal=results[0], results=tuple(results), safety_factor=best)
+    nominal = results[0]
+    limit = 2.0 * scene.cube_friction * nominal.grip_force_n / (9.81 + nominal.peak_acceleration_m_s2)
+    return HoldMargin(nominal=nominal, results=tuple(results), safety_factor=best, cube_friction=scene.cube_friction,
+                      coulomb_limit_kg=limit)

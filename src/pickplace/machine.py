@@ -116,8 +116,8 @@ class MachineConfig:
         retract_height_m: Vertical retreat after the release, before returning home (m).
         settle_s: Hold at the end of each trajectory before the next phase (s).
         poll_s: Step of the loops that wait for the gripper (s).
-        stable_after_release_s: After DONE, the simulation continues until this long after the release, and
-            the cube's position then is reported (s).
+        stable_after_release_s: After DONE, the simulation continues until this long after the release; the
+            cube must then still lie within ``place_tolerance_xy_m`` of the goal, or the episode fails (s).
         max_retries: Recoveries allowed per episode (regrasp, re-pick, replan); 0 turns recovery off. A
             failure identical (numbers aside) to the one the last recovery answered is not retried again.
         predict_period_s: While a trajectory runs, the rest of it is checked against the world as it is now
@@ -200,8 +200,9 @@ class MachineOutcome:
         segments: The planned segments.
         ik_position_error_m: Largest tcp position residual of the IK solutions (m).
         ik_orientation_error_rad: Largest tcp orientation residual of the IK solutions (rad).
-        tracking_error_max_rad: Largest joint tracking error over the trajectory phases (rad).
-        tracking_error_rms_rad: RMS joint tracking error over the trajectory phases (rad).
+        tracking: Tracking errors per phase, of every control loop that ran in it (trajectories, holds,
+            Cartesian moves).
+        tracking_total: The same over the whole episode.
         torque_saturation_events: Control steps with a clipped torque, all phases.
         grip_force_n: Sum of the pads' normal forces when the grip settled (N).
         lift_grip_force_n: Mean sum of the pads' normal forces while the cube is lifted off the table (N).
@@ -230,8 +231,8 @@ class MachineOutcome:
     segments: list[SegmentPlan] = field(default_factory=list)
     ik_position_error_m: float = 0.0
     ik_orientation_error_rad: float = 0.0
-    tracking_error_max_rad: float = 0.0
-    tracking_error_rms_rad: float = 0.0
+    tracking: dict[str, control.PhaseTracking] = field(default_factory=dict)
+    tracking_total: control.PhaseTracking = field(default_factory=control.PhaseTracking)
     torque_saturation_events: int = 0
     grip_force_n: float = 0.0
     lift_grip_force_n: float = 0.0
@@ -307,7 +308,8 @@ class PickPlaceMachine:
         self._payload: Payload | None = None
         self._T_tcp_cube: pin.SE3 | None = None
         self._release_t = math.nan
-        self._track_errors: list[np.ndarray] = []
+        self._tallies: dict[str, control.TrackingTally] = {}
+        self._tally_total = control.TrackingTally()
 
     # ------------------------------------------------------------------ helpers
     @property
@@ -330,7 +332,10 @@ class PickPlaceMachine:
                                                     r.orientation_error_rad)  # type: ignore[attr-defined]
 
     def _count(self, rec: control.TrackingRecord | control.CartesianRecord) -> None:
+        """Account for one control loop: its saturated steps and its tracking errors (in the current phase)."""
         self.out.torque_saturation_events += rec.saturation_events
+        self._tallies.setdefault(self.monitor.phase, control.TrackingTally()).add(rec)
+        self._tally_total.add(rec)
 
     def _hold(self, q: np.ndarray, duration_s: float) -> control.TrackingRecord:
         rec = control.hold(self.robot, self.d, q, duration_s, self.ctrl, payload=self._payload, hook=self.monitor,
@@ -409,8 +414,6 @@ class PickPlaceMachine:
         finally:
             self.monitor.predictor = None
         self._count(rec)
-        err = np.abs(rec.q - rec.q_ref)
-        self._track_errors.append(err)
         if self.recorder is not None:
             self.recorder.add_joint_segment(phase.value, t_start + rec.t, rec.q, rec.q_ref)
         if rec.final_error_rad > 0.01:  # knocked off its path (a push): give it time to settle at the end
@@ -640,10 +643,11 @@ class PickPlaceMachine:
                                              f"(tolerance {cfg.place_tolerance_xy_m * 1e3:.2f} mm)")
         if abs(self.out.place_error_z_m) > cfg.place_tolerance_z_m:
             raise PhaseFailed(Phase.RELEASE, f"the cube rests {self.out.place_error_z_m * 1e3:.2f} mm above the "
-                                             "table (it should sit on it)")
+                                             "table (it should sit on it; tolerance "
+                                             f"{cfg.place_tolerance_z_m * 1e3:.2f} mm)")
         if abs(self.out.place_error_yaw_rad) > cfg.place_tolerance_yaw_rad:
             raise PhaseFailed(Phase.RELEASE, f"the cube's yaw is {self.out.place_error_yaw_rad:.3f} rad off the "
-                                             "goal's")
+                                             f"goal's (tolerance {cfg.place_tolerance_yaw_rad:.3f} rad)")
         return Phase.RETRACT
 
     def _measure_place(self) -> None:
@@ -697,10 +701,8 @@ class PickPlaceMachine:
             out.cycle_time_s = self.monitor.t
             self._after_done()
         out.slip_max_m = self.monitor.slip_max_m
-        if self._track_errors:
-            errs = np.concatenate(self._track_errors)
-            out.tracking_error_max_rad = float(errs.max())
-            out.tracking_error_rms_rad = float(np.sqrt(np.mean(errs**2)))
+        out.tracking = {phase: tally.result() for phase, tally in self._tallies.items()}
+        out.tracking_total = self._tally_total.result()
         return out
 
     def _spent(self, phase: Phase, t0: float, outcome: str) -> None:
@@ -835,6 +837,11 @@ class PickPlaceMachine:
         cube = self._cube_pose()
         err = cube.translation[:2] - self.robot.scene.goal_pos_m[:2]
         self.out.final_place_error_xy_m = float(np.hypot(err[0], err[1]))
+        tol = self.cfg.place_tolerance_xy_m
+        if self.out.final_place_error_xy_m > tol:  # placed, then it moved: the place did not hold
+            self._fail(Phase.RELEASE, PhaseFailed(
+                Phase.RELEASE, f"the cube moved after the release: it rests {self.out.final_place_error_xy_m * 1e3:.2f}"
+                f" mm from the goal {self.cfg.stable_after_release_s:g} s after it (tolerance {tol * 1e3:.2f} mm)"))
 
 
 __all__ = [
