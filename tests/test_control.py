@@ -328,3 +328,31 @@ def test_cartesian_tracking_error_is_the_distance_to_the_reference(robot: Robot,
     assert rec.position_error_max_m >= z_err.max() - 1e-12  # the distance is at least the height error
     assert rec.position_error_max_m <= math.hypot(z_err.max(), rec.lateral_drift_max_m) + 1e-12
     assert 0 < rec.position_error_rms_m <= rec.position_error_max_m < 5e-4
+
+
+def test_stop_brings_a_fast_arm_to_rest_along_its_motion(robot: Robot) -> None:
+    """An arm moving at close to the UR5e's top joint speed: the stop decelerates along the motion within the
+    limits and ends at rest; holding where it stands instead overshoots by far more."""
+    v0 = np.array([2.5, -2.0, 3.0, -3.0, 3.0, 3.0])
+    decel = np.array(TimingConfig.ur5e().acceleration_limits_rad_s2)
+
+    def moving() -> mujoco.MjData:
+        d = _data_at(robot, STRETCHED_Q)
+        d.qvel[robot.handles.arm_dof] = v0
+        return d
+
+    d = moving()
+    rec = control.stop(robot, d, decel, ControlConfig(), settle_s=0.2)
+    T = float(np.max(np.abs(v0) / decel))
+    speed = float(np.abs(d.qvel[robot.handles.arm_dof]).max())
+    travelled = d.qpos[robot.handles.arm_qpos] - STRETCHED_Q
+    held = control.hold(robot, moving(), STRETCHED_Q, 0.2, ControlConfig(max_joint_error_rad=1.0))
+    print(f"\nstop from {np.abs(v0).max():.1f} rad/s: {T:.3f} s, max error {rec.max_error_rad * 1e3:.2f} mrad, final "
+          f"speed {speed:.1e} rad/s; a plain hold: max error {held.max_error_rad * 1e3:.1f} mrad")
+    assert rec.duration_s == pytest.approx(T + 0.2, abs=2e-3)
+    assert speed < 1e-3
+    np.testing.assert_allclose(travelled, v0 * T / 2, atol=5e-3)  # along the motion, as far as the profile says
+    assert rec.max_error_rad < 0.01
+    assert held.max_error_rad > 5 * rec.max_error_rad
+    with pytest.raises(ConfigError, match=r"stop\.decel_rad_s2"):
+        control.stop(robot, moving(), (8.0, 8.0, 0.0, 16.0, 16.0, 16.0), ControlConfig())

@@ -768,6 +768,56 @@ def hold(
     return _run_joint(robot, data, "hold", q_ref, zeros, zeros, config, payload, hook, noise)
 
 
+def stop(
+    robot: Robot,
+    data: mujoco.MjData,
+    decel_rad_s2: np.ndarray | tuple[float, ...],
+    config: ControlConfig,
+    *,
+    payload: Payload | None = None,
+    hook: Hook | None = None,
+    noise: JointNoise | None = None,
+    settle_s: float = 0.1,
+) -> TrackingRecord:
+    """Bring a moving arm to rest along its direction of motion, then hold it (a category-2 stop).
+
+    The reference starts at the measured state and decelerates every joint uniformly, all reaching rest at the
+    same time ``T = max_j |qd_j| / decel_j``: ``q(t) = q0 + qd0 (t - t^2 / (2 T))``, so it ends at
+    ``q0 + qd0 T / 2``. Holding the current position instead would ask a fast arm to reverse at once: the
+    impedance overshoots by ``qd / omega`` and, at full speed, past ``config.max_joint_error_rad``.
+
+    Args:
+        robot: The models.
+        data: MuJoCo data, advanced in place.
+        decel_rad_s2: Deceleration limits per joint (6,) (rad/s^2), e.g. the trajectory's acceleration limits.
+        config: Gains.
+        payload: An object held at the tcp.
+        hook: Called with ``data`` after every simulation step; may raise to abort.
+        noise: Noise added to the joint positions the controller reads (a sensor fault), or None.
+        settle_s: Time to hold the rest position after the deceleration (s).
+
+    Returns:
+        The :class:`TrackingRecord` of the deceleration and the hold.
+
+    Raises:
+        ConfigError: a deceleration limit is not a positive finite number or ``settle_s`` is negative.
+        ControlError: the joint error exceeds ``config.max_joint_error_rad``.
+    """
+    decel = np.array(check_vector("stop.decel_rad_s2", decel_rad_s2, N_ARM, 0.0, 1e4, lo_open=True,
+                                  unit="rad/s^2"))
+    settle_s = check_range("stop.settle_s", settle_s, 0.0, 60.0, unit="s")
+    h = robot.handles
+    dt = float(robot.mj.opt.timestep)
+    q0 = data.qpos[h.arm_qpos].copy()
+    v0 = data.qvel[h.arm_dof].copy()
+    T = float(np.max(np.abs(v0) / decel))
+    n = math.ceil(T / dt - 1e-9) + round(settle_s / dt)
+    t = np.clip(np.arange(-1, n + 1) * dt, None, T)
+    s = t - t**2 / (2.0 * T) if T > 0.0 else np.zeros_like(t)  # distance travelled per unit initial velocity
+    q_ref, qd_ref, qdd_ref = _grid_reference(q0 + np.outer(s, v0), dt)
+    return _run_joint(robot, data, "stop", q_ref, qd_ref, qdd_ref, config, payload, hook, noise)
+
+
 def move_vertical(
     robot: Robot,
     data: mujoco.MjData,
@@ -919,5 +969,6 @@ __all__ = [
     "min_jerk",
     "move_vertical",
     "saturate",
+    "stop",
     "track",
 ]

@@ -343,6 +343,12 @@ class PickPlaceMachine:
         self._count(rec)
         return rec
 
+    def _stop(self) -> None:
+        """Bring the arm to rest at the trajectories' deceleration limits, then hold it for 0.15 s."""
+        rec = control.stop(self.robot, self.d, self.timing.acceleration_limits_rad_s2, self.ctrl,
+                           payload=self._payload, hook=self.monitor, noise=self.noise, settle_s=0.15)
+        self._count(rec)
+
     def _hold_until(self, q: np.ndarray | None, done: Callable[[], bool], timeout_s: float,
                     min_s: float = 0.0) -> bool:
         """Hold ``q`` in steps of ``poll_s`` until ``done()`` (checked from ``min_s`` on) or ``timeout_s`` (s).
@@ -723,7 +729,7 @@ class PickPlaceMachine:
             return None
         if isinstance(exc, CollisionPredicted) and phase in _REPLAN:
             action, nxt = "stop and replan", _REPLAN[phase]
-            self._hold(self.q, 0.15)  # brake before planning from where the arm stands
+            self._stop()  # before planning from where the arm stands
         elif isinstance(exc, UnexpectedContact) and phase in _REPLAN and not self._touches_cube(exc):
             action, nxt = "back off along the executed path and replan", _REPLAN[phase]
             self._back_off()
@@ -780,6 +786,7 @@ class PickPlaceMachine:
         self.monitor.watch_cube_at = None
         self.monitor.allow_hand_cube = True
         self.monitor.allow_cube_table = True
+        self._stop()  # with the grip as it is: opening at speed would throw whatever is still held
         self._payload = None
         gripper.command(robot, d, False)
         self._hold(self.q, 0.15)
