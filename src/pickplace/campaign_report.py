@@ -7,9 +7,10 @@
 * ``place_error_hist.png`` and ``cycle_time_hist.png``: histograms over the successful trials;
 * ``failure_reasons.png``: failures grouped by phase, kind and reason (numbers aside);
 
-and ``OUT/report.md``, which links them below the summary figures. Matplotlib (the ``video`` extra,
-``pip install 'pickplace[video]'``) is imported inside the functions and used through its object API
-(``Figure`` with an Agg canvas), never pyplot.
+and ``OUT/report.md``, which links them below the summary figures (with the recoveries: how many successes
+needed one, the histogram of retries; and when trials failed: before the arm moved, after, or in their worker).
+Matplotlib (the ``video`` extra, ``pip install 'pickplace[video]'``) is imported inside the functions and used
+through its object API (``Figure`` with an Agg canvas), never pyplot.
 """
 
 from __future__ import annotations
@@ -195,10 +196,28 @@ def summary_rows(summary: CampaignSummary) -> list[tuple[str, str]]:
          f"{_fmt(summary.cycle_time_mean_s)} / {_fmt(summary.cycle_time_p95_s)} s"),
         ("planning time per segment median / p95",
          f"{_fmt(summary.plan_time_median_s, 1e3)} / {_fmt(summary.plan_time_p95_s, 1e3)} ms"),
-        ("joint tracking error max", f"{_fmt(summary.tracking_error_max_rad, 1e3)} mrad"),
+        ("joint tracking error max (trajectories and holds)", f"{_fmt(summary.tracking_error_max_rad, 1e3)} mrad"),
+        ("tcp tracking error max (Cartesian moves)", f"{_fmt(summary.tcp_tracking_error_max_m, 1e3)} mm"),
         ("wall time per trial (mean)", f"{_fmt(summary.wall_time_mean_s)} s"),
-        ("worker failures (crash, timeout, exception)", str(summary.worker_failures)),
+        ("successes that needed a recovery", f"{summary.successes_with_recovery} of {summary.successes}"),
+        ("trials per number of retries (retries: trials; all but worker failures)", retries_histogram_text(summary)),
+        ("failed before the arm moved (rejected in IDLE)",
+         _count_share(summary.failed_before_motion, summary.failed_before_motion_rate)),
+        ("failed after the arm moved (a later phase)",
+         _count_share(summary.failed_after_motion, summary.failed_after_motion_rate)),
+        ("worker failures (crash, timeout, exception)",
+         _count_share(summary.worker_failures, summary.worker_failure_rate)),
     ]
+
+
+def _count_share(count: int, rate: float) -> str:
+    """``count (share of all trials)``."""
+    return f"{count} ({_pct(rate)})" if math.isfinite(rate) else str(count)
+
+
+def retries_histogram_text(summary: CampaignSummary) -> str:
+    """The retries histogram on one line, ``retries: trials``: ``0: 47 · 1: 2 · 2: 1`` (``—`` if no episode ran)."""
+    return " · ".join(f"{b.retries}: {b.trials}" for b in summary.retries_histogram) or "—"
 
 
 def _markdown(out: Path, summary: CampaignSummary, plots: dict[str, Path], names: list[str]) -> str:
@@ -211,7 +230,16 @@ def _markdown(out: Path, summary: CampaignSummary, plots: dict[str, Path], names
               f"Parameters varied: {', '.join(f'`{n}`' for n in names) or 'none'}.", "", link("success_vs_params"),
               "", "## Place error (successful trials)", "", link("place_error_hist"),
               "", "## Cycle time (successful trials)", "", link("cycle_time_hist"),
-              "", "## Failures", "", link("failure_reasons"), ""]
+              "", "## Recoveries", "",
+              f"{summary.successes_with_recovery} of the {summary.successes} successes needed at least one recovery. "
+              "Trials per number of retries (recoveries used), over every trial whose episode ran "
+              f"({sum(b.trials for b in summary.retries_histogram)} of {summary.trials}; worker failures have no "
+              "episode):", "", "| retries | trials |", "|---|---|"]
+    lines += [f"| {b.retries} | {b.trials} |" for b in summary.retries_histogram]
+    lines += ["", "## Failures", "",
+              f"Of {summary.trials} trials, {summary.failed_before_motion} failed before the arm moved (rejected in "
+              f"IDLE), {summary.failed_after_motion} failed after it moved, and {summary.worker_failures} were "
+              "worker failures (crash, timeout, exception).", "", link("failure_reasons"), ""]
     if summary.failures:
         lines += ["| phase | kind | trials | reason (numbers as #) | example |", "|---|---|---|---|---|"]
         for g in summary.failures:
@@ -279,4 +307,5 @@ def _values(records: Sequence[TrialRecord], key: str) -> np.ndarray:
     return arr[np.isfinite(arr)]
 
 
-__all__ = ["MATPLOTLIB_HINT", "PLOTS_DIR", "REPORT_FILE", "summary_rows", "varied_params", "write_report"]
+__all__ = ["MATPLOTLIB_HINT", "PLOTS_DIR", "REPORT_FILE", "retries_histogram_text", "summary_rows", "varied_params",
+           "write_report"]
