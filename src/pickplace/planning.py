@@ -258,13 +258,29 @@ def _shift_subtree(parent: np.ndarray, cost: np.ndarray, n: int, root: int, delt
         cost[frontier] += delta
 
 
+def sampling_bounds(start: np.ndarray, goal: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                    config: PlannerConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Where the RRT* samples between ``start`` and ``goal`` (n,) within the joint bounds ``[lower, upper]`` (n,).
+
+    With ``config.sample_in_box``: the box spanned by start and goal, widened by ``config.box_margin_rad`` on
+    every joint and clipped to the joint bounds (start and goal within the bounds stay inside it); otherwise the
+    joint bounds.
+
+    Returns:
+        (lower (n,), upper (n,)) of the sampling region (rad).
+    """
+    if not config.sample_in_box:
+        return np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    lo = np.maximum(lower, np.minimum(start, goal) - config.box_margin_rad)
+    hi = np.minimum(upper, np.maximum(start, goal) + config.box_margin_rad)
+    return lo, hi
+
+
 def _search(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray, lo: np.ndarray, hi: np.ndarray,
             cfg: PlannerConfig, rng: np.random.Generator, t0: float) -> tuple[np.ndarray, int, int]:
     """RRT* from start to goal. Returns (tree path (K, n), iterations used, tree size)."""
     d = start.size
-    if cfg.sample_in_box:
-        lo = np.maximum(lo, np.minimum(start, goal) - cfg.box_margin_rad)
-        hi = np.minimum(hi, np.maximum(start, goal) + cfg.box_margin_rad)
+    lo, hi = sampling_bounds(start, goal, lo, hi, cfg)
     span = hi - lo
     unit_ball = math.pi ** (d / 2) / math.gamma(d / 2 + 1)
     gamma = 2.0 * (1.0 + 1.0 / d) ** (1.0 / d) * (float(np.prod(span)) / unit_ball) ** (1.0 / d)
@@ -441,4 +457,4 @@ def plan(checker: ValidityChecker, q_start: np.ndarray, q_goal: np.ndarray, lowe
 
 
 __all__ = ["PlanResult", "PlanStatus", "PlannerConfig", "ValidityChecker", "path_cost", "path_valid", "plan",
-           "segment_valid", "shortcut"]
+           "sampling_bounds", "segment_valid", "shortcut"]
