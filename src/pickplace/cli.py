@@ -437,9 +437,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", action="store_true",
                    help="complete the campaign in --out: run only the trials not recorded yet")
     p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
-                   help="run on Ray: a local instance, or the cluster at ADDRESS (needs pip install 'pickplace[ray]')")
+                   help="run on Ray: a local instance (no ADDRESS), 'auto' (the cluster started on this machine) or "
+                        "the cluster at HOST:PORT, with or without token auth (needs pip install 'pickplace[ray]')")
     p.add_argument("--timeout", type=float, default=60.0, metavar="S",
-                   help="per-trial wall-clock limit; a trial over it is recorded as failed (default 60 s)")
+                   help="per-trial wall-clock limit, counted from when a worker that is up starts the trial; a "
+                        "trial over it is recorded as failed (default 60 s)")
     p.add_argument("--no-randomize", action="store_true",
                    help="run the base config in every trial (only the episode seed varies)")
     p.add_argument("--json", action="store_true", help="print summary.json instead of the tables")
