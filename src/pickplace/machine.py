@@ -65,7 +65,7 @@ class Phase(enum.Enum):
     DESCEND_PLACE = "DESCEND_PLACE"
     RELEASE = "RELEASE"
     RETRACT = "RETRACT"
-    RECOVER = "RECOVER"  # only after a recoverable failure: open, back off, re-observe the cube
+    RECOVER = "RECOVER"  # only after a recoverable failure: stop, open, back off, re-observe the cube
     DONE = "DONE"
     FAILED = "FAILED"
 
@@ -734,7 +734,7 @@ class PickPlaceMachine:
             action, nxt = "back off along the executed path and replan", _REPLAN[phase]
             self._back_off()
         elif isinstance(exc, GraspFailed) and phase in _GRASP_PHASES:
-            action, nxt = "open, back off, re-observe the cube and grasp again", Phase.RECOVER
+            action, nxt = "stop, open, back off, re-observe the cube and grasp again", Phase.RECOVER
         elif isinstance(exc, CubeMoved) and phase in (Phase.EXEC_APPROACH, Phase.DESCEND):
             action, nxt = "stop, wait for the cube to rest, observe it again and approach again", Phase.RECOVER
         elif phase is Phase.DESCEND and (isinstance(exc, PhaseFailed) or
