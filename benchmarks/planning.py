@@ -5,12 +5,12 @@ state space bounds set to the box pickplace samples in, ±1 rad around start and
 ``ompl-rrtstar-box``); every row of the table and of the ``--json`` output says where it sampled.
 
 Run ``make bench`` (installs the ``bench`` extra with OMPL) or ``pickplace bench planning [--json]``.
-The implementation lives in :mod:`pickplace.bench.planning`.
+The implementation lives in :mod:`pickplace.eval.bench.planning`.
 """
 
 import sys
 
-from pickplace.bench.planning import main
+from pickplace.eval.bench.planning import main
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import dataclasses
 
-from pickplace.episode import EpisodeConfig, run_episode
-from pickplace.faults import FaultConfig
-from pickplace.machine import MachineConfig
+from pickplace.task.episode import EpisodeConfig, run_episode
+from pickplace.task.faults import FaultConfig
+from pickplace.task.machine import MachineConfig
 
 
 def main() -> int:

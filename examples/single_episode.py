@@ -5,7 +5,7 @@
 
 from __future__ import annotations
 
-from pickplace.episode import EpisodeConfig, run_episode
+from pickplace.task.episode import EpisodeConfig, run_episode
 
 
 def main() -> int:

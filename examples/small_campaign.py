@@ -9,7 +9,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from pickplace.campaign import CampaignConfig, RandomizationSpec, run_campaign
+from pickplace.eval.campaign import CampaignConfig, RandomizationSpec, run_campaign
 
 
 def main(argv: list[str] | None = None) -> int:

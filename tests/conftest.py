@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from pickplace import model
-from pickplace.configurations import GraspConfigurations, solve_grasp_configurations
+from pickplace.grasping.configurations import GraspConfigurations, solve_grasp_configurations
+from pickplace.robot import model
 
 
 @pytest.fixture(scope="module")

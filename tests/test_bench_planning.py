@@ -13,9 +13,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pickplace import planning
-from pickplace.bench import planning as bench
 from pickplace.errors import ConfigError, PlanningFailed
+from pickplace.eval.bench import planning as bench
+from pickplace.motion import planning
 
 
 class _RecordingChecker:

@@ -1,4 +1,4 @@
-"""Tests of :mod:`pickplace.campaign`, ``pickplace eval`` and ``pickplace report``.
+"""Tests of :mod:`pickplace.eval.campaign`, ``pickplace eval`` and ``pickplace report``.
 
 Seeds, validation and the summary's figures are checked without running episodes; the rest runs real episodes
 (about 0.7 s each on an idle machine) on 2 worker processes: a small campaign and its summary, the reproduce
@@ -27,7 +27,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pickplace.campaign import (
+from pickplace.cli import main
+from pickplace.errors import ConfigError
+from pickplace.eval.campaign import (
     RAY_HINT,
     RESULTS_FILE,
     SUMMARY_FILE,
@@ -53,9 +55,7 @@ from pickplace.campaign import (
     trial_toml_path,
     wilson_interval,
 )
-from pickplace.cli import main
-from pickplace.episode import EpisodeConfig, EpisodeResult, run_episode
-from pickplace.errors import ConfigError
+from pickplace.task.episode import EpisodeConfig, EpisodeResult, run_episode
 
 SEED = 11
 SUMMARY_KEYS = {

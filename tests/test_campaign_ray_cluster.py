@@ -28,7 +28,8 @@ from pathlib import Path
 
 import pytest
 
-from pickplace.campaign import (
+from pickplace.cli import main
+from pickplace.eval.campaign import (
     RESULTS_FILE,
     CampaignConfig,
     CampaignError,
@@ -37,8 +38,7 @@ from pickplace.campaign import (
     run_campaign,
     strip_wall_times,
 )
-from pickplace.campaign.ray_cluster import split_address, token_source
-from pickplace.cli import main
+from pickplace.eval.campaign.ray_cluster import split_address, token_source
 
 pytestmark = pytest.mark.skipif(sys.platform != "linux", reason="finds the cluster's processes through /proc")
 ray = pytest.importorskip("ray", reason="Ray is not installed (pip install 'pickplace[ray]')")

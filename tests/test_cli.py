@@ -10,8 +10,9 @@ import sys
 import mujoco
 import pytest
 
-from pickplace import __version__, model
+from pickplace import __version__
 from pickplace.cli import main
+from pickplace.robot import model
 
 
 def test_inspect_json(capsys) -> None:

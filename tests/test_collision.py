@@ -1,4 +1,4 @@
-"""Tests of pickplace.collision: configuration validity on MuJoCo's collision detection."""
+"""Tests of pickplace.motion.collision: configuration validity on MuJoCo's collision detection."""
 
 from __future__ import annotations
 
@@ -7,12 +7,12 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from pickplace import model
-from pickplace.collision import CollisionChecker, CollisionPolicy
-from pickplace.configurations import GraspConfigurations
 from pickplace.errors import CollisionError, ConfigError
-from pickplace.ik import solve_ik
-from pickplace.targets import T_tcp_cube, top_down
+from pickplace.grasping.configurations import GraspConfigurations
+from pickplace.grasping.targets import T_tcp_cube, top_down
+from pickplace.motion.collision import CollisionChecker, CollisionPolicy
+from pickplace.robot import model
+from pickplace.robot.ik import solve_ik
 
 #: Depth of the finger tips below the tcp (m): pads and finger boxes end 10 mm past the tcp (gripper.xml).
 TIP_BELOW_TCP_M = 0.010

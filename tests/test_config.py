@@ -1,4 +1,4 @@
-"""Tests of pickplace.config: SceneConfig defaults and the ConfigError messages of bad values."""
+"""Tests of pickplace.world.config: SceneConfig defaults and the ConfigError messages of bad values."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import re
 import numpy as np
 import pytest
 
-from pickplace.config import MAX_CUBE_SIZE_M, MIN_CUBE_SIZE_M, SceneConfig
 from pickplace.errors import ConfigError, PickPlaceError
+from pickplace.world.config import MAX_CUBE_SIZE_M, MIN_CUBE_SIZE_M, SceneConfig
 
 
 def test_defaults_are_valid() -> None:

@@ -12,13 +12,14 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from pickplace import control, gripper
-from pickplace.collision import CollisionChecker, CollisionPolicy
-from pickplace.configurations import GraspConfigurations
-from pickplace.control import ControlConfig, Payload
 from pickplace.errors import ConfigError, ControlError, GraspFailed
-from pickplace.model import Robot
-from pickplace.timing import TimingConfig, retime
+from pickplace.grasping.configurations import GraspConfigurations
+from pickplace.motion import control
+from pickplace.motion.collision import CollisionChecker, CollisionPolicy
+from pickplace.motion.control import ControlConfig, Payload
+from pickplace.motion.timing import TimingConfig, retime
+from pickplace.robot import gripper
+from pickplace.robot.model import Robot
 
 #: A stretched pose behind the robot, away from the table: about 61 N m of gravity on the shoulder.
 STRETCHED_Q = np.array([-0.4, -0.5, 0.2, -1.2, 1.5708, 0.0])

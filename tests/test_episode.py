@@ -20,9 +20,9 @@ import sys
 import numpy as np
 import pytest
 
-from pickplace.episode import EpisodeConfig, EpisodeResult, run_episode
 from pickplace.errors import ConfigError
-from pickplace.machine import Phase
+from pickplace.task.episode import EpisodeConfig, EpisodeResult, run_episode
+from pickplace.task.machine import Phase
 
 PLACE_ERROR_MAX_M = 1.4e-3  # the reference design's RMS place error, beaten on every episode
 STABLE_ERROR_MAX_M = 2e-3  # the cube within 2 mm of B 1 s after release
@@ -127,7 +127,8 @@ def test_tracking_errors_cover_every_phase_that_tracks(default_episode: EpisodeR
 def test_default_episode_renders_a_video_and_plots(default_episode: EpisodeResult, tmp_path) -> None:
     """The product's video and plots, offscreen on a CPU-only machine (EGL / Mesa)."""
     iio = pytest.importorskip("imageio.v3", reason="needs the video extra: pip install 'pickplace[video]'")
-    from pickplace import model, report
+    from pickplace.eval import report
+    from pickplace.robot import model
 
     tel = default_episode.telemetry
     assert tel is not None
@@ -158,7 +159,7 @@ def test_same_seed_same_episode() -> None:
 def test_saturated_motors_are_counted_in_the_result() -> None:
     """Trajectories timed at 300 rad/s² and 10 rad/s (the UR5e: 8–16 rad/s², π rad/s) ask for more torque than
     the motors have: the episode reports the clipped steps (whatever becomes of it)."""
-    from pickplace.timing import TimingConfig
+    from pickplace.motion.timing import TimingConfig
 
     fast = dataclasses.replace(TimingConfig.ur5e(), acceleration_limits_rad_s2=(300.0,) * 6,
                                velocity_limits_rad_s=(10.0,) * 6)

@@ -1,7 +1,7 @@
 """Faults injected on purpose: each is detected in the right phase with the right reason, within a stated time,
 and recovered from where it can be.
 
-Every fault is a real change to the simulation (see :mod:`pickplace.faults`). Each test runs full episodes
+Every fault is a real change to the simulation (see :mod:`pickplace.task.faults`). Each test runs full episodes
 (about 0.5–1 s each): with recovery off (``machine.max_retries = 0``) to check the detection, and with the
 default recovery to check what it achieves. Run with ``-s`` to see the detection times.
 """
@@ -14,9 +14,9 @@ import re
 
 import pytest
 
-from pickplace.episode import EpisodeConfig, EpisodeResult, run_episode
-from pickplace.faults import FaultConfig
-from pickplace.machine import MachineConfig
+from pickplace.task.episode import EpisodeConfig, EpisodeResult, run_episode
+from pickplace.task.faults import FaultConfig
+from pickplace.task.machine import MachineConfig
 
 TRANSPORT_PUSH = FaultConfig(transport_push_n=(0.0, 0.0, -40.0), transport_push_start_s=0.2, transport_push_s=0.05)
 PRE_PICK_PUSH = FaultConfig(pre_pick_push_n=(0.0, -2.5), pre_pick_push_s=0.1)

@@ -1,4 +1,4 @@
-"""Tests of pickplace.grasp: friction cones, wrenches, 6D force closure, antipodal test."""
+"""Tests of pickplace.grasping.closure: friction cones, wrenches, 6D force closure, antipodal test."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from pickplace.errors import ConfigError
-from pickplace.grasp import (
+from pickplace.grasping.closure import (
     Contact,
     analyze_grasp,
     antipodal,
@@ -243,11 +243,11 @@ def inscribed_radius(wrenches: np.ndarray, n_dirs: int = 20000, n_refined: int =
 
 
 def _qhull_failing(monkeypatch: pytest.MonkeyPatch, fail_joggled: bool) -> list[str | None]:
-    """Make pickplace.grasp's qhull raise its precision error for the default options (and for "QJ" too if
+    """Make pickplace.grasping.closure's qhull raise its precision error for the default options (and for "QJ" too if
     ``fail_joggled``); returns the list of options it was called with."""
     from scipy.spatial import ConvexHull, QhullError
 
-    import pickplace.grasp as grasp_module
+    import pickplace.grasping.closure as grasp_module
 
     calls: list[str | None] = []
 

@@ -1,4 +1,4 @@
-"""Tests of pickplace.gripper: the measured geometry and the hold test (close, lift, carry, measure slip)."""
+"""Tests of pickplace.robot.gripper: the measured geometry and the hold test (close, lift, carry, measure slip)."""
 
 from __future__ import annotations
 
@@ -6,9 +6,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from pickplace import model
-from pickplace.config import SceneConfig
-from pickplace.gripper import GripperGeometry, HoldResult, hold_test
+from pickplace.grasping.hold import HoldResult, hold_test
+from pickplace.robot import model
+from pickplace.robot.gripper import GripperGeometry
+from pickplace.world.config import SceneConfig
 
 SLIP_M = 0.001
 

@@ -1,4 +1,4 @@
-"""Tests of pickplace.ik and the four grasp configurations (pickplace.configurations, pickplace.targets)."""
+"""Tests of pickplace.robot.ik and the four grasp configurations (pickplace.grasping: configurations, targets)."""
 
 from __future__ import annotations
 
@@ -10,14 +10,14 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from pickplace import model
-from pickplace.collision import CollisionChecker, CollisionPolicy
-from pickplace.config import SceneConfig
-from pickplace.configurations import GraspConfigurations, solve_grasp_configurations
 from pickplace.errors import ConfigError, UnreachableTarget
-from pickplace.ik import IKConfig, IKStatus, solve_ik
-from pickplace.kinematics import frame_pose, rot_z, wrap_to_pi
-from pickplace.targets import top_down
+from pickplace.grasping.configurations import GraspConfigurations, solve_grasp_configurations
+from pickplace.grasping.targets import top_down
+from pickplace.motion.collision import CollisionChecker, CollisionPolicy
+from pickplace.robot import model
+from pickplace.robot.ik import IKConfig, IKStatus, solve_ik
+from pickplace.robot.kinematics import frame_pose, rot_z, wrap_to_pi
+from pickplace.world.config import SceneConfig
 
 TOL = 1e-4
 

@@ -1,4 +1,4 @@
-"""Tests of pickplace.model: the compiled scene, the UR5e against UR's DH table, Pinocchio against MuJoCo.
+"""Tests of pickplace.robot.model: the compiled scene, the UR5e against UR's DH table, Pinocchio against MuJoCo.
 
 The DH chain below is written here from ../shared/UR5E.md, independently of the MJCF, so the MJCF's
 kinematics and centres of mass are checked against UR's published numbers, not against themselves.
@@ -14,9 +14,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from pickplace import model
-from pickplace.config import SceneConfig
-from pickplace.kinematics import frame_jacobian
+from pickplace.robot import model
+from pickplace.robot.kinematics import frame_jacobian
+from pickplace.world.config import SceneConfig
 
 # --------------------------------------------------------------------------- #
 # UR5e published data (UR5E.md), typed in independently of the MJCF

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from pickplace.errors import ConfigError, PlanningFailed
-from pickplace.planning import (
+from pickplace.motion.planning import (
     PlannerConfig,
     PlanStatus,
     ValidityChecker,

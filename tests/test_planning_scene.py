@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pickplace import model, planning
-from pickplace.config import SceneConfig
-from pickplace.configurations import solve_grasp_configurations
 from pickplace.errors import PlanningFailed
-from pickplace.timing import TimingConfig, retime
+from pickplace.grasping.configurations import solve_grasp_configurations
+from pickplace.motion import planning
+from pickplace.motion.timing import TimingConfig, retime
+from pickplace.robot import model
+from pickplace.world.config import SceneConfig
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""Tests of pickplace.report: plots and the offscreen video, on telemetry recorded from the real MuJoCo model."""
+"""Tests of pickplace.eval.report: plots and the offscreen video, on telemetry recorded from the real MuJoCo model."""
 
 from __future__ import annotations
 
@@ -12,10 +12,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from pickplace import model
 from pickplace.errors import PickPlaceError
-from pickplace.report import RenderError, render_video, save_plots
-from pickplace.telemetry import Telemetry, TelemetryRecorder
+from pickplace.eval.report import RenderError, render_video, save_plots
+from pickplace.robot import model
+from pickplace.task.telemetry import Telemetry, TelemetryRecorder
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 PLOT_NAMES = ["joint_tracking.png", "tcp_height.png", "grip_force.png", "phase_timeline.png"]
@@ -86,7 +86,7 @@ def test_save_plots_writes_four_valid_pngs(telemetry: Telemetry, tmp_path: Path)
 
 
 def test_joint_tracking_plot_without_tracked_segments(robot: model.Robot, tmp_path: Path) -> None:
-    from pickplace.report import _plot_joint_tracking
+    from pickplace.eval.report import _plot_joint_tracking
 
     telemetry = _record(robot, frame_rate_hz=0.0, n_steps=30).freeze()
     assert telemetry.joint_segments == ()
@@ -131,7 +131,7 @@ def test_render_video_errors(robot: model.Robot, telemetry: Telemetry, tmp_path:
 
 
 def test_missing_optional_package_names_the_extra() -> None:
-    from pickplace.report import _import_optional
+    from pickplace.eval.report import _import_optional
 
     with pytest.raises(RenderError, match=r"pip install 'pickplace\[video\]'"):
         _import_optional("pickplace_no_such_module")
@@ -143,9 +143,9 @@ def test_headless_without_mujoco_gl_falls_back_to_egl(mp4: Path, tmp_path: Path)
         import mujoco, numpy as np
         from mujoco.rendering.classic import gl_context
         assert gl_context.GLContext.__module__ == "mujoco.glfw", gl_context.GLContext.__module__
-        from pickplace import model
-        from pickplace.report import render_video
-        from pickplace.telemetry import TelemetryRecorder
+        from pickplace.robot import model
+        from pickplace.eval.report import render_video
+        from pickplace.task.telemetry import TelemetryRecorder
         robot = model.build()
         d = robot.make_data()
         rec = TelemetryRecorder(robot, frame_rate_hz=30.0)

@@ -1,4 +1,4 @@
-"""Tests of pickplace.timing: TOPP-RA time scaling of joint-space paths."""
+"""Tests of pickplace.motion.timing: TOPP-RA time scaling of joint-space paths."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from pickplace.errors import ConfigError, PickPlaceError, TimingFailed
-from pickplace.timing import TimingConfig, Trajectory, retime
+from pickplace.motion.timing import TimingConfig, Trajectory, retime
 
 PRESETS = {"ur5e": TimingConfig.ur5e(), "design_note": TimingConfig.design_note()}
 DT_S = 1e-3  # sampling period of every limit check (s)

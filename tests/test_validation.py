@@ -18,8 +18,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from pickplace.cli import main
-from pickplace.episode import _SECTIONS, EpisodeConfig
 from pickplace.errors import ConfigError
+from pickplace.task.episode import _SECTIONS, EpisodeConfig
 
 # --------------------------------------------------------------------------- #
 # property: the validator accepts or raises ConfigError, nothing else

@@ -20,15 +20,15 @@ from rich.markup import escape
 from rich.table import Table
 
 from pickplace import __version__
-from pickplace.config import SceneConfig
 from pickplace.errors import ConfigError, PickPlaceError
+from pickplace.world.config import SceneConfig
 
 if TYPE_CHECKING:
-    from pickplace.campaign import CampaignConfig, CampaignRun
-    from pickplace.episode import EpisodeConfig, EpisodeResult
-    from pickplace.faults import FaultConfig
-    from pickplace.model import Robot
-    from pickplace.telemetry import Telemetry
+    from pickplace.eval.campaign import CampaignConfig, CampaignRun
+    from pickplace.robot.model import Robot
+    from pickplace.task.episode import EpisodeConfig, EpisodeResult
+    from pickplace.task.faults import FaultConfig
+    from pickplace.task.telemetry import Telemetry
 
 EXIT_FAILURE = 1
 EXIT_USAGE = 2
@@ -48,10 +48,11 @@ def _scene_from_args(args: argparse.Namespace) -> SceneConfig:
 
 def inspect_data(scene: SceneConfig) -> dict[str, object]:
     """Everything ``pickplace inspect`` reports, as JSON-ready data."""
-    from pickplace import model
-    from pickplace.campaign import RandomizationSpec
-    from pickplace.configurations import solve_grasp_configurations
-    from pickplace.gripper import GripperGeometry, hold_margin
+    from pickplace.eval.campaign import RandomizationSpec
+    from pickplace.grasping.configurations import solve_grasp_configurations
+    from pickplace.grasping.hold import hold_margin
+    from pickplace.robot import model
+    from pickplace.robot.gripper import GripperGeometry
 
     robot = model.build(scene)
     m = robot.mj
@@ -116,7 +117,7 @@ def inspect_data(scene: SceneConfig) -> dict[str, object]:
 def _cmd_inspect(args: argparse.Namespace, console: Console) -> int:
     scene = _scene_from_args(args)
     if args.export_xml:
-        from pickplace import model
+        from pickplace.robot import model
 
         path = Path(args.export_xml)
         path.write_text(model.scene_xml(scene))
@@ -189,7 +190,7 @@ DESIGN_NOTE = {
 
 def episode_config_from_args(args: argparse.Namespace, base: EpisodeConfig | None = None) -> EpisodeConfig:
     """The episode config of ``pickplace run``/``eval``: ``--config`` TOML (or ``base``), then the flags on top."""
-    from pickplace.episode import EpisodeConfig
+    from pickplace.task.episode import EpisodeConfig
 
     if base is None:
         base = EpisodeConfig.from_toml(args.config) if args.config else EpisodeConfig()
@@ -220,8 +221,8 @@ def _faults_from_args(items: list[str], base: FaultConfig) -> FaultConfig:
     """``--fault KEY=VALUE`` options (VALUE in TOML syntax: ``0.5``, ``true``, ``[0, 0, -40]``) over ``base``."""
     import tomllib
 
-    from pickplace.config import from_mapping
-    from pickplace.faults import FaultConfig
+    from pickplace.task.faults import FaultConfig
+    from pickplace.world.config import from_mapping
 
     values: dict[str, object] = {}
     for item in items:
@@ -300,8 +301,8 @@ def print_episode(result: EpisodeResult, console: Console) -> None:
 
 
 def _cmd_run(args: argparse.Namespace, console: Console) -> int:
-    from pickplace.episode import run_episode
-    from pickplace.machine import Phase
+    from pickplace.task.episode import run_episode
+    from pickplace.task.machine import Phase
 
     config = episode_config_from_args(args)
     wants_media = bool(args.video or args.plots or args.viewer)
@@ -315,7 +316,8 @@ def _cmd_run(args: argparse.Namespace, console: Console) -> int:
     elif moved:
         print_episode(result, console)
     if result.telemetry is not None:
-        from pickplace import model, report
+        from pickplace.eval import report
+        from pickplace.robot import model
 
         written = report.save_plots(result.telemetry, Path(args.plots)) if args.plots else []
         robot = model.build(config.scene) if args.video or args.viewer else None  # the scene the frames show
@@ -456,7 +458,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _cmd_bench(args: argparse.Namespace, console: Console) -> int:
     import importlib
 
-    bench = importlib.import_module(f"pickplace.bench.{args.name}")
+    bench = importlib.import_module(f"pickplace.eval.bench.{args.name}")
     return int(bench.main(list(args.bench_args)))
 
 
@@ -479,7 +481,7 @@ def campaign_from_args(args: argparse.Namespace) -> CampaignConfig:
     flags on top); the TOML may also hold a ``[randomization]`` table. With ``--resume`` and no episode
     option, ``--seed`` or ``--no-randomize``, the campaign recorded in ``OUT/campaign.json`` is resumed.
     """
-    from pickplace.campaign import (
+    from pickplace.eval.campaign import (
         CAMPAIGN_FILE,
         CampaignConfig,
         RandomizationSpec,
@@ -506,7 +508,7 @@ def print_campaign(run: CampaignRun, console: Console, max_commands: int = 20) -
     """The summary table, the failures grouped by phase and reason, and the reproduce commands."""
     from rich.markup import escape
 
-    from pickplace.campaign_report import summary_rows
+    from pickplace.eval.campaign_report import summary_rows
 
     s = run.summary
     t = Table(title=escape(f"Campaign {run.out_dir}"))
@@ -542,7 +544,7 @@ def _cmd_eval(args: argparse.Namespace, console: Console) -> int:
         TimeRemainingColumn,
     )
 
-    from pickplace.campaign import CampaignProgress, run_campaign
+    from pickplace.eval.campaign import CampaignProgress, run_campaign
 
     campaign = campaign_from_args(args)
     progress = Progress(TextColumn("[bold]eval"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[ok]}"),
@@ -573,7 +575,7 @@ def _cmd_eval(args: argparse.Namespace, console: Console) -> int:
 def _cmd_report(args: argparse.Namespace, console: Console) -> int:
     from rich.markup import escape
 
-    from pickplace.campaign_report import write_report
+    from pickplace.eval.campaign_report import write_report
 
     for path in write_report(args.out):
         console.print(escape(f"wrote {path}"), highlight=False)

@@ -1,0 +1,348 @@
+"""What a campaign runs: the randomization, the campaign config, and its trials.
+
+Trial ``i`` draws its scene and its episode seed from ``numpy.random.SeedSequence(campaign_seed, spawn_key=(i,
+...))``: they depend on the campaign seed and ``i`` only, not on the number of trials, the workers or the
+backend, so any trial can be re-run alone (:func:`trial_config`). :func:`execute_trial` runs one trial in a
+worker and turns it into its results line; an exception raised by the episode becomes a failed trial of phase
+``WORKER``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import time
+import traceback
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from pickplace.errors import ConfigError, PickPlaceError
+from pickplace.task.episode import EpisodeConfig, EpisodeResult
+from pickplace.world.config import MAX_CUBE_SIZE_M, MIN_CUBE_SIZE_M, check_int, check_range, check_vector
+
+log = logging.getLogger(__name__)
+
+#: The phase recorded for a trial whose worker raised, crashed or timed out.
+WORKER_PHASE = "WORKER"
+
+
+class CampaignError(PickPlaceError):
+    """A campaign cannot run: a worker failed to start, a Ray cluster cannot be joined, or a package is missing."""
+
+
+# --------------------------------------------------------------------------- #
+# randomization
+# --------------------------------------------------------------------------- #
+
+Range = tuple[float, float]
+
+#: Per field of RandomizationSpec: (bounds of the range, unit, scene field it changes, offset or absolute).
+_SPEC_FIELDS: dict[str, tuple[float, float, str, str]] = {
+    "cube_dx_m": (-0.5, 0.5, "m", "offset"),
+    "cube_dy_m": (-0.5, 0.5, "m", "offset"),
+    "cube_dyaw_rad": (-math.pi, math.pi, "rad", "offset"),
+    "goal_dx_m": (-0.5, 0.5, "m", "offset"),
+    "goal_dy_m": (-0.5, 0.5, "m", "offset"),
+    "goal_dyaw_rad": (-math.pi, math.pi, "rad", "offset"),
+    "cube_mass_kg": (1e-3, 5.0, "kg", "absolute"),
+    "cube_size_m": (MIN_CUBE_SIZE_M, MAX_CUBE_SIZE_M, "m", "absolute"),
+    "cube_friction": (0.05, 5.0, "", "absolute"),
+    "transport_push_n": (0.0, 200.0, "N", "perturbation"),
+    "pad_friction_scale": (0.0, 5.0, "", "fault"),
+    "cube_mass_scale": (0.01, 50.0, "", "fault"),
+    "joint_noise_rad": (0.0, 0.05, "rad", "fault"),
+}
+#: The first fields of _SPEC_FIELDS; the push's direction and start are drawn right after them, and any field
+#: added later after those, so that adding a field never changes the values of the existing ones.
+_N_FIRST_FIELDS = 10
+#: Duration of a randomized transport push when the base config's faults do not set one (s).
+PUSH_DURATION_S = 0.05
+#: Window, after the transport trajectory starts, in which a randomized push starts (s).
+PUSH_START_S = (0.05, 0.5)
+
+
+@dataclass(frozen=True)
+class RandomizationSpec:
+    """Ranges ``(lo, hi)`` sampled uniformly per trial; ``None`` keeps the base config's value.
+
+    The ``d`` fields are offsets added to the base config's value; the others replace it.
+
+    Attributes:
+        cube_dx_m: Offset of the cube's start x (m).
+        cube_dy_m: Offset of the cube's start y (m).
+        cube_dyaw_rad: Offset of the cube's start yaw (rad).
+        goal_dx_m: Offset of the goal x (m).
+        goal_dy_m: Offset of the goal y (m).
+        goal_dyaw_rad: Offset of the goal yaw (rad).
+        cube_mass_kg: Cube mass (kg).
+        cube_size_m: Cube edge length (m).
+        cube_friction: Friction coefficient of every contact with the cube.
+        transport_push_n: Magnitude of a push on the carried cube (N), off by default. Its direction is drawn
+            uniformly on the sphere and its start uniformly in ``PUSH_START_S`` after the transport starts;
+            it lasts the base config's ``faults.transport_push_s``, or ``PUSH_DURATION_S``.
+        pad_friction_scale: The ``faults.pad_friction_scale`` of each trial, off by default.
+        cube_mass_scale: The ``faults.cube_mass_scale`` of each trial (true / believed mass), off by default.
+        joint_noise_rad: The ``faults.joint_noise_rad`` of each trial (rad), off by default.
+    """
+
+    cube_dx_m: Range | None = (-0.05, 0.05)
+    cube_dy_m: Range | None = (-0.05, 0.05)
+    cube_dyaw_rad: Range | None = (-math.pi / 4, math.pi / 4)
+    goal_dx_m: Range | None = (-0.05, 0.05)
+    goal_dy_m: Range | None = (-0.05, 0.05)
+    goal_dyaw_rad: Range | None = (0.0, 0.0)
+    cube_mass_kg: Range | None = (0.05, 0.5)
+    cube_size_m: Range | None = (0.03, 0.05)
+    cube_friction: Range | None = (0.6, 1.5)
+    transport_push_n: Range | None = None
+    pad_friction_scale: Range | None = None
+    cube_mass_scale: Range | None = None
+    joint_noise_rad: Range | None = None
+
+    def __post_init__(self) -> None:
+        for name, (lo, hi, unit, _) in _SPEC_FIELDS.items():
+            value = getattr(self, name)
+            if value is None:
+                continue
+            rng = check_vector(f"randomization.{name}", value, 2, lo, hi, unit=unit)
+            if rng[0] > rng[1]:
+                raise ConfigError(f"randomization.{name}", value, "must be a range (lo, hi) with lo <= hi")
+            object.__setattr__(self, name, rng)
+
+    @classmethod
+    def off(cls) -> RandomizationSpec:
+        """No randomization: every trial runs the base config (only the episode seed changes)."""
+        return cls(**dict.fromkeys(_SPEC_FIELDS))
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> RandomizationSpec:
+        """Build from a ``[randomization]`` table: ``name = [lo, hi]``, or ``name = false`` to keep the base value.
+
+        Fields not given keep their defaults.
+        """
+        if not isinstance(data, Mapping):
+            raise ConfigError("randomization", data, "must be a table of keys")
+        changes: dict[str, Any] = {}
+        for key, value in data.items():
+            if key not in _SPEC_FIELDS:
+                raise ConfigError(f"randomization.{key}", value, f"unknown key; allowed: {', '.join(_SPEC_FIELDS)}")
+            if value is False:
+                changes[key] = None
+            elif isinstance(value, (list, tuple)):
+                changes[key] = tuple(value)
+            else:
+                raise ConfigError(f"randomization.{key}", value,
+                                  "must be a range of two numbers lo <= hi (e.g. [0.05, 0.5]) or false")
+        return cls(**changes)
+
+    def to_dict(self) -> dict[str, list[float] | bool]:
+        """Plain data, the inverse of :meth:`from_dict` (``false`` for a field that is not randomized)."""
+        return {name: list(getattr(self, name)) if getattr(self, name) is not None else False
+                for name in _SPEC_FIELDS}
+
+    def active(self) -> list[str]:
+        """Names of the randomized fields (those not ``None``)."""
+        return [name for name in _SPEC_FIELDS if getattr(self, name) is not None]
+
+    def sample(self, rng: np.random.Generator) -> dict[str, float]:
+        """One draw: randomized field name -> value (the same number of draws whatever is randomized)."""
+        u = rng.random(len(_SPEC_FIELDS) + 3)  # + the push's direction (2) and start (1)
+        first = _N_FIRST_FIELDS
+        draws = np.concatenate([u[:first], u[first + 3:]])  # per field, in _SPEC_FIELDS order
+        out: dict[str, float] = {}
+        for k, name in enumerate(_SPEC_FIELDS):
+            r = getattr(self, name)
+            if r is not None:
+                out[name] = float(r[0] + draws[k] * (r[1] - r[0]))
+        if self.transport_push_n is not None:
+            a, b, c = u[first:first + 3]
+            out["push_azimuth_rad"] = float(2 * math.pi * a)
+            out["push_elevation_rad"] = float(math.asin(2 * b - 1))
+            out["push_start_s"] = float(PUSH_START_S[0] + c * (PUSH_START_S[1] - PUSH_START_S[0]))
+        return out
+
+
+def apply_params(base: EpisodeConfig, params: Mapping[str, float]) -> EpisodeConfig:
+    """The base config with sampled parameters (names of :class:`RandomizationSpec` fields) applied."""
+    sc = base.scene
+    changes: dict[str, Any] = {}
+    if "cube_dx_m" in params or "cube_dy_m" in params:
+        changes["cube_start_xy_m"] = (sc.cube_start_xy_m[0] + params.get("cube_dx_m", 0.0),
+                                      sc.cube_start_xy_m[1] + params.get("cube_dy_m", 0.0))
+    if "goal_dx_m" in params or "goal_dy_m" in params:
+        changes["goal_xy_m"] = (sc.goal_xy_m[0] + params.get("goal_dx_m", 0.0),
+                                sc.goal_xy_m[1] + params.get("goal_dy_m", 0.0))
+    if "cube_dyaw_rad" in params:
+        changes["cube_yaw_rad"] = sc.cube_yaw_rad + params["cube_dyaw_rad"]
+    if "goal_dyaw_rad" in params:
+        changes["goal_yaw_rad"] = sc.goal_yaw_rad + params["goal_dyaw_rad"]
+    for name in ("cube_mass_kg", "cube_size_m", "cube_friction"):
+        if name in params:
+            changes[name] = params[name]
+    config = base.with_scene(**changes) if changes else base
+    if "transport_push_n" in params:
+        az, el, mag = params["push_azimuth_rad"], params["push_elevation_rad"], params["transport_push_n"]
+        force = (mag * math.cos(el) * math.cos(az), mag * math.cos(el) * math.sin(az), mag * math.sin(el))
+        faults = dataclasses.replace(base.faults, transport_push_n=force, transport_push_start_s=params["push_start_s"],
+                                     transport_push_s=base.faults.transport_push_s or PUSH_DURATION_S)
+        config = dataclasses.replace(config, faults=faults)
+    faults = {name: params[name] for name in ("pad_friction_scale", "cube_mass_scale", "joint_noise_rad")
+              if name in params}
+    if faults:
+        config = dataclasses.replace(config, faults=dataclasses.replace(config.faults, **faults))
+    return config
+
+
+#: Which randomization fields move each scene field (to name them in errors).
+_SCENE_TO_SPEC = {
+    "scene.cube_start_xy_m": ("cube_dx_m", "cube_dy_m", "cube_size_m"),
+    "scene.goal_xy_m": ("goal_dx_m", "goal_dy_m", "cube_size_m"),
+    "scene.cube_yaw_rad": ("cube_dyaw_rad",),
+    "scene.goal_yaw_rad": ("goal_dyaw_rad",),
+}
+
+
+def _check_extremes(base: EpisodeConfig, spec: RandomizationSpec) -> None:
+    """Every corner of the randomization box gives a valid scene, with the cube on the table at start and goal."""
+    active = [name for name in spec.active() if _SPEC_FIELDS[name][3] in ("offset", "absolute")]  # scene fields
+    for corner in range(1 << len(active)):
+        params = {name: getattr(spec, name)[(corner >> k) & 1] for k, name in enumerate(active)}
+        try:
+            apply_params(base, params).scene.check_goal_on_table()
+        except ConfigError as exc:
+            names = [n for n in _SCENE_TO_SPEC.get(exc.field.split("[")[0], ()) if n in active] or active
+            raise ConfigError("randomization." + "/".join(names), [getattr(spec, n) for n in names],
+                              f"can give an invalid scene around the base config ({exc})") from None
+
+
+# --------------------------------------------------------------------------- #
+# campaign and trials
+# --------------------------------------------------------------------------- #
+
+
+@dataclass(frozen=True)
+class CampaignConfig:
+    """What a campaign runs.
+
+    Attributes:
+        base: The episode config the trials randomize.
+        randomization: What varies between trials.
+        trials: Number of trials N (trials 0 .. N-1).
+        seed: Campaign seed; trial i's scene and episode seed derive from it and i only.
+        workers: Trials running at once (local worker processes, or Ray actors); None: every core
+            (``os.cpu_count()`` locally, the cluster's CPUs on Ray).
+        timeout_s: Per-trial wall-clock limit (s), counted from the moment a worker that is up (started, pickplace
+            imported) takes the trial; a trial over it is killed with its worker and recorded as failed.
+    """
+
+    base: EpisodeConfig = field(default_factory=EpisodeConfig)
+    randomization: RandomizationSpec = field(default_factory=RandomizationSpec)
+    trials: int = 100
+    seed: int = 0
+    workers: int | None = None
+    timeout_s: float = 60.0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.base, EpisodeConfig):
+            raise ConfigError("campaign.base", self.base, "must be an EpisodeConfig")
+        if not isinstance(self.randomization, RandomizationSpec):
+            raise ConfigError("campaign.randomization", self.randomization, "must be a RandomizationSpec")
+        object.__setattr__(self, "trials", check_int("campaign.trials", self.trials, 1, 10_000_000))
+        object.__setattr__(self, "seed", check_int("campaign.seed", self.seed, 0, 2**63 - 1))
+        if self.workers is not None:
+            object.__setattr__(self, "workers", check_int("campaign.workers", self.workers, 1, 4096))
+        object.__setattr__(self, "timeout_s", check_range("campaign.timeout_s", self.timeout_s, 0.0, 86400.0,
+                                                          lo_open=True, unit="s"))
+        _check_extremes(self.base, self.randomization)
+
+    def identity(self) -> dict[str, Any]:
+        """What defines the trials (base config, randomization, seed): must match to resume a campaign."""
+        return {"base": self.base.to_dict(), "randomization": self.randomization.to_dict(), "seed": self.seed}
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One trial of a campaign, ready to run.
+
+    Attributes:
+        index: Trial index i (0-based).
+        seed: The episode's seed.
+        params: The sampled parameters (RandomizationSpec field -> value; offsets in m/rad, SI units).
+        config: The base config with the parameters applied.
+    """
+
+    index: int
+    seed: int
+    params: dict[str, float]
+    config: EpisodeConfig
+
+
+def trial_seed(campaign_seed: int, index: int) -> int:
+    """Episode seed of trial ``index`` (in [0, 2**32)): a function of the campaign seed and the index only."""
+    ss = np.random.SeedSequence(campaign_seed, spawn_key=(index, 0))
+    return int(ss.generate_state(1, dtype=np.uint32)[0])
+
+
+def make_trial(campaign: CampaignConfig, index: int) -> Trial:
+    """Trial ``index`` of ``campaign``: its sampled parameters, config and seed."""
+    check_int("trial", index, 0)
+    rng = np.random.default_rng(np.random.SeedSequence(campaign.seed, spawn_key=(index, 1)))
+    params = campaign.randomization.sample(rng)
+    return Trial(index, trial_seed(campaign.seed, index), params, apply_params(campaign.base, params))
+
+
+def trial_config(campaign: CampaignConfig, index: int) -> tuple[EpisodeConfig, int]:
+    """``(config, seed)`` of trial ``index``: ``run_episode(config, seed)`` re-runs it alone, exactly."""
+    t = make_trial(campaign, index)
+    return t.config, t.seed
+
+
+RunFn = Callable[[EpisodeConfig, int], EpisodeResult]
+
+
+def worker_failure(trial: Trial, kind: str, reason: str, wall_time_s: float) -> dict[str, Any]:
+    """The results line of a trial whose worker raised, crashed or timed out (no EpisodeResult)."""
+    data: dict[str, Any] = {f.name: None for f in dataclasses.fields(EpisodeResult) if f.name != "telemetry"}
+    data.update(success=False, failure_phase=WORKER_PHASE, failure_reason=reason, failure_kind=kind,
+                seed=trial.seed, wall_time_s=wall_time_s, config=trial.config.to_dict())
+    return {"trial": trial.index, "params": trial.params, **data}
+
+
+def execute_trial(run_fn: RunFn, trial: Trial) -> dict[str, Any]:
+    """Run one trial (in a worker) and return its results line; an exception becomes a ``WORKER`` failure.
+
+    Args:
+        run_fn: The episode function (``run_episode``; tests pass a module-level function of their own).
+        trial: The trial.
+    """
+    t0 = time.perf_counter()
+    try:
+        result = run_fn(trial.config, trial.seed)
+        return {"trial": trial.index, "params": trial.params, **result.to_dict()}
+    except Exception as exc:  # the worker must survive any trial: the error is the trial's result
+        log.error("trial %d raised:\n%s", trial.index, traceback.format_exc())
+        return worker_failure(trial, type(exc).__name__, f"the episode raised {type(exc).__name__}: {exc}",
+                              time.perf_counter() - t0)
+
+
+
+__all__ = [
+    "PUSH_DURATION_S",
+    "PUSH_START_S",
+    "WORKER_PHASE",
+    "CampaignConfig",
+    "CampaignError",
+    "RandomizationSpec",
+    "RunFn",
+    "Trial",
+    "apply_params",
+    "execute_trial",
+    "make_trial",
+    "trial_config",
+    "trial_seed",
+    "worker_failure",
+]

@@ -1,0 +1,262 @@
+"""The figures of a campaign from its records: success rate with its interval, errors, failures grouped."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pickplace.eval.campaign.spec import WORKER_PHASE
+from pickplace.eval.campaign.store import TrialRecord, json_ready, reproduce_command, trial_toml_path
+from pickplace.task.machine import Phase
+
+_Z95 = 1.959963984540054  # standard normal quantile of 0.975
+#: The phase in which an episode fails before the arm moves (the scene is observed and every target solved first).
+BEFORE_MOTION_PHASE = Phase.IDLE.value
+
+
+_NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
+
+
+def normalize_reason(reason: str | None) -> str:
+    """A failure reason with its numbers replaced by ``#``, so that similar failures group together."""
+    return _NUMBER.sub("#", reason or "")
+
+
+def wilson_interval(successes: int, trials: int, z: float = _Z95) -> tuple[float, float]:
+    """Wilson score interval of a success rate (95% by default); (0, 1) for no trials."""
+    if trials <= 0:
+        return (0.0, 1.0)
+    p = successes / trials
+    z2 = z * z
+    denom = 1.0 + z2 / trials
+    centre = (p + z2 / (2 * trials)) / denom
+    half = z * math.sqrt(p * (1 - p) / trials + z2 / (4 * trials * trials)) / denom
+    lo = 0.0 if successes == 0 else max(0.0, centre - half)  # exact ends (rounding gives 1 - 1e-16)
+    hi = 1.0 if successes == trials else min(1.0, centre + half)
+    return (lo, hi)
+
+
+@dataclass(frozen=True)
+class FailureGroup:
+    """Failures sharing a phase, an error kind and a reason (numbers aside).
+
+    Attributes:
+        phase: The failed phase.
+        kind: The error kind.
+        reason: The reason with numbers replaced by ``#``.
+        count: How many trials.
+        trials: Their indices.
+        example: One full reason, with its numbers.
+    """
+
+    phase: str
+    kind: str
+    reason: str
+    count: int
+    trials: tuple[int, ...]
+    example: str
+
+
+@dataclass(frozen=True)
+class FailedTrial:
+    """One failed trial and the command that reproduces it.
+
+    Attributes:
+        trial: Index.
+        seed: Episode seed.
+        phase: Failed phase.
+        kind: Error kind.
+        reason: Full reason.
+        config_path: The trial's config TOML.
+        command: ``pickplace run --config ... --seed ...``.
+    """
+
+    trial: int
+    seed: int
+    phase: str
+    kind: str
+    reason: str
+    config_path: str
+    command: str
+
+
+@dataclass(frozen=True)
+class RetryCount:
+    """One bin of the retries histogram.
+
+    Attributes:
+        retries: Recoveries an episode used (regrasp, re-pick, replan, payload correction).
+        trials: Trials whose episode used exactly that many.
+    """
+
+    retries: int
+    trials: int
+
+
+@dataclass(frozen=True)
+class CampaignSummary:
+    """Figures of a campaign. Lengths in m, times in s, angles in rad; NaN where there is nothing to measure.
+
+    Attributes:
+        trials: Recorded trials.
+        successes: Successful trials.
+        success_rate: successes / trials.
+        success_rate_ci95: 95% Wilson score interval of the success rate.
+        place_error_xy_rms_m: RMS horizontal place error of the successful trials.
+        place_error_xy_p95_m: Its 95th percentile.
+        cycle_time_mean_s: Mean simulated cycle time of the successful trials.
+        cycle_time_p95_s: Its 95th percentile.
+        plan_time_median_s: Median wall time of planning one segment (every segment of every trial).
+        plan_time_p95_s: Its 95th percentile.
+        tracking_error_max_rad: Largest joint tracking error of any trial, over every joint loop of every phase
+            (trajectories and holds).
+        tcp_tracking_error_max_m: Largest tcp position error of any trial's Cartesian moves (descend, lift, set
+            down, retract).
+        wall_time_mean_s: Mean wall time of a trial (in its worker).
+        successes_with_recovery: Successful trials whose episode needed at least one recovery (``retries >= 1``).
+        retries_histogram: Trials per number of retries, by increasing retries, over every trial whose episode
+            ran (all trials but the worker failures, which have no episode): the counts add up to
+            ``trials - worker_failures``.
+        failed_before_motion: Failed trials rejected before the arm moved: failed in ``IDLE``, where the cube is
+            observed and the four targets solved (unreachable or blocked targets); nothing was simulated.
+        failed_before_motion_rate: failed_before_motion / trials.
+        failed_after_motion: Failed trials whose episode failed in a phase after ``IDLE``, from the approach's
+            planning on (grasp, slip, collision, place check...); worker failures are not counted here.
+        failed_after_motion_rate: failed_after_motion / trials.
+        worker_failures: Trials recorded as failed by their worker (exception, crash, timeout: phase ``WORKER``).
+            ``trials = successes + failed_before_motion + failed_after_motion + worker_failures``.
+        worker_failure_rate: worker_failures / trials.
+        failures: Failures grouped by phase, kind and reason, most frequent first.
+        failed_trials: Every failed trial with its reproduce command, by index.
+    """
+
+    trials: int
+    successes: int
+    success_rate: float
+    success_rate_ci95: tuple[float, float]
+    place_error_xy_rms_m: float
+    place_error_xy_p95_m: float
+    cycle_time_mean_s: float
+    cycle_time_p95_s: float
+    plan_time_median_s: float
+    plan_time_p95_s: float
+    tracking_error_max_rad: float
+    tcp_tracking_error_max_m: float
+    wall_time_mean_s: float
+    successes_with_recovery: int
+    retries_histogram: tuple[RetryCount, ...]
+    failed_before_motion: int
+    failed_before_motion_rate: float
+    failed_after_motion: int
+    failed_after_motion_rate: float
+    worker_failures: int
+    worker_failure_rate: float
+    failures: tuple[FailureGroup, ...]
+    failed_trials: tuple[FailedTrial, ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-ready data (NaN becomes None)."""
+        return json_ready(dataclasses.asdict(self))
+
+
+def _finite(values: Iterable[Any]) -> np.ndarray:
+    arr = np.array([v for v in values if isinstance(v, (int, float)) and not isinstance(v, bool)], dtype=float)
+    return arr[np.isfinite(arr)]
+
+
+def _stat(values: np.ndarray, fn: Callable[[np.ndarray], Any]) -> float:
+    return float(fn(values)) if values.size else math.nan
+
+
+def retries_of(record: TrialRecord) -> int | None:
+    """Recoveries the trial's episode used, or None for a worker failure (no episode ran to count them)."""
+    value = record.result.get("retries")
+    if isinstance(value, int) and not isinstance(value, bool):
+        return value
+    recoveries = record.result.get("recoveries")
+    return len(recoveries) if isinstance(recoveries, list | tuple) else None
+
+
+def summarize(records: Sequence[TrialRecord], out_dir: str | Path = "OUT") -> CampaignSummary:
+    """The figures of a campaign from its records (one per trial).
+
+    Args:
+        records: The trial records.
+        out_dir: The campaign's output directory, as the reproduce commands should name it.
+    """
+    n = len(records)
+    ok = [r for r in records if r.success]
+    k = len(ok)
+    place = _finite(r.result.get("place_error_xy_m") for r in ok)
+    cycle = _finite(r.result.get("cycle_time_s") for r in ok)
+    plan = _finite(v for r in records for v in (r.result.get("plan_time_s") or {}).values())
+    tracking = _finite(r.result.get("tracking_error_max_rad") for r in records)
+    tcp_tracking = _finite(r.result.get("tcp_tracking_error_max_m") for r in records)
+    wall = _finite(r.result.get("wall_time_s") for r in records)
+
+    failed = sorted((r for r in records if not r.success), key=lambda r: r.trial)
+    worker = sum(r.failure_phase == WORKER_PHASE for r in failed)
+    before = sum(r.failure_phase == BEFORE_MOTION_PHASE for r in failed)
+    after = len(failed) - worker - before
+    retries = [x for x in map(retries_of, records) if x is not None]
+    histogram = tuple(RetryCount(x, retries.count(x)) for x in sorted(set(retries)))
+    groups: dict[tuple[str, str, str], list[TrialRecord]] = {}
+    for r in failed:
+        key = (r.failure_phase or "?", r.failure_kind or "?", normalize_reason(r.failure_reason))
+        groups.setdefault(key, []).append(r)
+    failure_groups = tuple(
+        FailureGroup(phase, kind, reason, len(rs), tuple(r.trial for r in rs), rs[0].failure_reason or "")
+        for (phase, kind, reason), rs in sorted(groups.items(), key=lambda kv: (-len(kv[1]), kv[0]))
+    )
+    failed_trials = tuple(
+        FailedTrial(r.trial, r.seed, r.failure_phase or "?", r.failure_kind or "?", r.failure_reason or "",
+                    str(trial_toml_path(out_dir, r.trial)),
+                    reproduce_command(trial_toml_path(out_dir, r.trial), r.seed))
+        for r in failed
+    )
+    return CampaignSummary(
+        trials=n,
+        successes=k,
+        success_rate=k / n if n else math.nan,
+        success_rate_ci95=wilson_interval(k, n),
+        place_error_xy_rms_m=_stat(place, lambda a: np.sqrt(np.mean(a**2))),
+        place_error_xy_p95_m=_stat(place, lambda a: np.percentile(a, 95)),
+        cycle_time_mean_s=_stat(cycle, np.mean),
+        cycle_time_p95_s=_stat(cycle, lambda a: np.percentile(a, 95)),
+        plan_time_median_s=_stat(plan, np.median),
+        plan_time_p95_s=_stat(plan, lambda a: np.percentile(a, 95)),
+        tracking_error_max_rad=_stat(tracking, np.max),
+        tcp_tracking_error_max_m=_stat(tcp_tracking, np.max),
+        wall_time_mean_s=_stat(wall, np.mean),
+        successes_with_recovery=sum((retries_of(r) or 0) >= 1 for r in ok),
+        retries_histogram=histogram,
+        failed_before_motion=before,
+        failed_before_motion_rate=before / n if n else math.nan,
+        failed_after_motion=after,
+        failed_after_motion_rate=after / n if n else math.nan,
+        worker_failures=worker,
+        worker_failure_rate=worker / n if n else math.nan,
+        failures=failure_groups,
+        failed_trials=failed_trials,
+    )
+
+
+
+__all__ = [
+    "BEFORE_MOTION_PHASE",
+    "CampaignSummary",
+    "FailedTrial",
+    "FailureGroup",
+    "RetryCount",
+    "normalize_reason",
+    "retries_of",
+    "summarize",
+    "wilson_interval",
+]

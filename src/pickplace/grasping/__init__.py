@@ -1,0 +1,1 @@
+"""Grasps: tcp targets, their joint configurations, force closure of the contacts, and the hold test."""

@@ -1,0 +1,236 @@
+"""Is an arm configuration valid in the scene? Built on MuJoCo's own collision detection.
+
+A :class:`CollisionChecker` owns a private copy of the scene's ``MjModel`` (so the simulation is never
+touched) in which every robot geom carries a safety margin: MuJoCo then reports a contact for any pair
+closer than the margin, and every reported contact that the checker's policy does not allow is a
+collision. It covers the robot against the table, floor and obstacles, robot self-collision (MuJoCo's
+parent-child filter excludes adjacent links), the gripper against the cube (unless allowed), and, while the
+cube is carried, the cube moving rigidly with the tcp.
+
+The checker's model is the scene compiled with one extra body: a copy of the cube welded to the gripper
+(``held_cube``), switched off unless the cube is carried. Carrying is then pure forward kinematics: one
+``mj_kinematics`` and one ``mj_collision`` per configuration, with no pose arithmetic in Python, so a check
+with the cube in hand costs the same as one without.
+"""
+
+from __future__ import annotations
+
+import copy
+import functools
+import logging
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+from pickplace.errors import CollisionError
+from pickplace.robot.model import Handles, Robot, quiet_attach, scene_spec
+from pickplace.world.config import SceneConfig, check_range
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class CollisionPolicy:
+    """What the checker counts as a collision.
+
+    Attributes:
+        margin_m: Safety margin (m): the robot (and the carried cube) closer than this to the table, the
+            floor or an obstacle counts as colliding; 0 means actual contact. Self-collision is checked at
+            actual contact.
+        cube_held: The cube is carried: it moves rigidly with the tcp (see ``T_tcp_cube``) and its contacts
+            with the table, the floor, obstacles and the arm are collisions.
+        allow_gripper_cube: Contacts between the gripper (pads, fingers) and the cube are allowed
+            (grasping, carrying, releasing).
+        allow_cube_table: Contacts between the cube and the table are allowed (the cube resting, or being
+            set down).
+        finger_m: Finger opening used for the check (m of slide travel; 0 = fully open).
+    """
+
+    margin_m: float = 0.01
+    cube_held: bool = False
+    allow_gripper_cube: bool = False
+    allow_cube_table: bool = True
+    finger_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        check_range("collision.margin_m", self.margin_m, 0.0, 0.1, unit="m")
+        check_range("collision.finger_m", self.finger_m, 0.0, 0.040, unit="m")
+
+
+class CollisionChecker:
+    """Configuration validity for the arm in one scene under one :class:`CollisionPolicy`.
+
+    Args:
+        robot: The models.
+        policy: What counts as a collision.
+        world: A simulation state giving the pose of everything that is not the arm (where the cube rests,
+            mocap bodies); default: the scene's initial state. See :meth:`set_world`.
+        T_tcp_cube: Pose of the cube in the tcp frame while it is held (default: centred, aligned).
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        policy: CollisionPolicy | None = None,
+        world: mujoco.MjData | None = None,
+        T_tcp_cube: pin.SE3 | None = None,
+    ) -> None:
+        self.robot = robot
+        self.policy = policy or CollisionPolicy()
+        self._m = copy.deepcopy(_checker_model(robot.scene))
+        self._d = mujoco.MjData(self._m)
+        h = self._handles = Handles.resolve(self._m)
+        self._held_body = mujoco.mj_name2id(self._m, mujoco.mjtObj.mjOBJ_BODY, HELD_CUBE)
+        self._held_geom = mujoco.mj_name2id(self._m, mujoco.mjtObj.mjOBJ_GEOM, HELD_CUBE)
+        self._arm = slice(int(h.arm_qpos[0]), int(h.arm_qpos[0]) + 6)
+        assert np.array_equal(h.arm_qpos, np.arange(self._arm.start, self._arm.stop)), "arm qpos must be contiguous"
+        mujoco.mj_resetDataKeyframe(self._m, self._d, 0)
+        self._d.qpos[h.finger_qpos] = self.policy.finger_m
+        if world is not None:
+            self.set_world(world)
+        self._weld_held_cube(T_tcp_cube or pin.SE3.Identity())
+        self.checks = 0
+        self._configure_filters()
+
+    def set_world(self, d: mujoco.MjData) -> None:
+        """Take the pose of everything that is not the arm from a simulation state (the cube, mocap bodies).
+
+        The arm joints in ``d`` are ignored (each check sets them); the fingers keep the policy's opening.
+        """
+        h = self._handles
+        arm = self._d.qpos[self._arm].copy()
+        self._d.qpos[:] = d.qpos
+        self._d.qpos[self._arm] = arm
+        self._d.qpos[h.finger_qpos] = self.policy.finger_m
+        self._d.mocap_pos[:] = d.mocap_pos
+        self._d.mocap_quat[:] = d.mocap_quat
+
+    def _weld_held_cube(self, T_tcp_cube: pin.SE3) -> None:
+        """Pose the held cube's body in its parent (the body carrying the tcp site): T_tcp_site * T_tcp_cube."""
+        m, tcp = self._m, self._handles.tcp_site
+        R_parent_tcp = np.empty(9)
+        mujoco.mju_quat2Mat(R_parent_tcp, m.site_quat[tcp])
+        R_parent_tcp = R_parent_tcp.reshape(3, 3)
+        quat = np.empty(4)
+        mujoco.mju_mat2Quat(quat, (R_parent_tcp @ T_tcp_cube.rotation).ravel())
+        m.body_pos[self._held_body] = m.site_pos[tcp] + R_parent_tcp @ T_tcp_cube.translation
+        m.body_quat[self._held_body] = quat
+
+    def _configure_filters(self) -> None:
+        """Encode the policy in the model copy's contype/conaffinity bits and margins.
+
+        Every geom that takes part in collisions gets one class bit as its contype and, as its conaffinity,
+        the bits of the classes it must not touch. MuJoCo then only generates the contacts that count, so a
+        configuration is valid exactly when ``ncon == 0`` (no per-contact filtering in Python).
+        """
+        m, h, policy = self._m, self._handles, self.policy
+        OFF, ARM, GRIP, TABLE, ENV, CUBE = 0, 1, 2, 4, 8, 16
+        table = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "table")
+        cls = np.full(m.ngeom, ENV)
+        cls[np.isin(m.geom_bodyid, list(h.robot_bodies))] = ARM
+        cls[np.isin(m.geom_bodyid, list(h.gripper_bodies))] = GRIP
+        cls[m.geom_bodyid == table] = TABLE
+        # Exactly one of the two cubes takes part: the one resting in the world, or the one in the gripper.
+        cls[m.geom_bodyid == h.cube_body] = OFF if policy.cube_held else CUBE
+        cls[m.geom_bodyid == self._held_body] = CUBE if policy.cube_held else OFF
+        pairs = {(ARM, ARM), (ARM, GRIP), (ARM, TABLE), (ARM, ENV), (ARM, CUBE), (GRIP, GRIP), (GRIP, TABLE),
+                 (GRIP, ENV)}
+        if not (policy.allow_gripper_cube or policy.cube_held):
+            pairs.add((GRIP, CUBE))
+        if policy.cube_held:
+            pairs.add((CUBE, ENV))
+            if not policy.allow_cube_table:
+                pairs.add((CUBE, TABLE))
+        affinity = {c: 0 for c in (OFF, ARM, GRIP, TABLE, ENV, CUBE)}
+        for a, b in pairs:
+            affinity[a] |= b
+            affinity[b] |= a
+        active = (m.geom_contype | m.geom_conaffinity) != 0  # visual geoms stay out
+        m.geom_contype[active] = cls[active]
+        m.geom_conaffinity[active] = [affinity[c] for c in cls[active]]
+        # MuJoCo uses the larger margin of a pair: margins on the environment (and on the carried cube) keep
+        # the robot clear of them, while robot self-collision is checked at actual contact (adjacent housings
+        # of the UR5e sit closer than any useful margin).
+        m.geom_margin[:] = 0.0
+        m.geom_margin[(cls == TABLE) | (cls == ENV)] = policy.margin_m
+        if policy.cube_held:
+            m.geom_margin[cls == CUBE] = policy.margin_m
+        # The broad phase works on bodies: it filters body pairs by the OR of their geoms' bits and pads each
+        # body's bounds by its largest geom margin, both computed at compile time, so they are redone here.
+        for b in range(m.nbody):
+            in_body = m.geom_bodyid == b
+            m.body_contype[b] = np.bitwise_or.reduce(m.geom_contype[in_body], initial=0)
+            m.body_conaffinity[b] = np.bitwise_or.reduce(m.geom_conaffinity[in_body], initial=0)
+            m.body_margin[b] = m.geom_margin[in_body].max(initial=0.0)
+
+    # ------------------------------------------------------------------ #
+    def _place(self, q: np.ndarray) -> None:
+        d = self._d
+        d.qpos[self._arm] = q
+        mujoco.mj_kinematics(self._m, d)
+        mujoco.mj_collision(self._m, d)
+        self.checks += 1
+
+    def is_valid(self, q: np.ndarray) -> bool:
+        """True if the arm configuration (6,) (rad) is collision free under the policy."""
+        self._place(q)
+        return self._d.ncon == 0
+
+    def are_valid(self, qs: np.ndarray) -> np.ndarray:
+        """Validity of a batch of configurations (N, 6) (rad) -> bool (N,)."""
+        qs = np.atleast_2d(qs)
+        out = np.empty(len(qs), dtype=bool)
+        for i, q in enumerate(qs):
+            self._place(q)
+            out[i] = self._d.ncon == 0
+        return out
+
+    def all_valid(self, qs: np.ndarray) -> bool:
+        """Whether every configuration of a batch (N, 6) is valid; stops at the first collision."""
+        for q in np.atleast_2d(qs):
+            self._place(q)
+            if self._d.ncon:
+                return False
+        return True
+
+    def colliding_pairs(self, q: np.ndarray) -> list[tuple[str, str]]:
+        """Names of the geom pairs in collision at ``q`` (6,) (sorted, without repeats)."""
+        self._place(q)
+        geoms = self._d.contact.geom[: self._d.ncon]
+        pairs = {tuple(sorted((self._geom_name(int(a)), self._geom_name(int(b))))) for a, b in geoms}
+        return sorted(pairs)  # type: ignore[arg-type]
+
+    def _geom_name(self, g: int) -> str:
+        """A geom's name as the user knows it (the carried cube is reported as ``cube``)."""
+        if g == self._held_geom:
+            return "cube"
+        return self._m.geom(g).name or f"geom{g}"
+
+    def require_valid(self, q: np.ndarray, what: str) -> None:
+        """Raise :class:`CollisionError` naming the geoms if ``q`` is in collision."""
+        pairs = self.colliding_pairs(q)
+        if pairs:
+            raise CollisionError(what, pairs)
+
+
+HELD_CUBE = "held_cube"
+"""Name of the checker model's body (and geom) that is the cube while it is carried."""
+
+
+@functools.lru_cache(maxsize=16)
+def _checker_model(scene: SceneConfig) -> mujoco.MjModel:
+    """The scene compiled with a copy of the cube welded to the tcp's body (compiled once per scene).
+
+    Nothing else changes: the qpos layout is the simulation's, so world states carry over. Each checker
+    works on its own deep copy (it edits the collision bits, the margins and the held cube's pose).
+    """
+    spec = scene_spec(scene)
+    h = scene.cube_size_m / 2
+    tcp_body = spec.site("tcp").parent
+    held = tcp_body.add_body(name=HELD_CUBE)
+    held.add_geom(name=HELD_CUBE, type=mujoco.mjtGeom.mjGEOM_BOX, size=[h, h, h], mass=scene.cube_mass_kg,
+                  group=5)  # its collision bits are set per checker (_configure_filters)
+    with quiet_attach():
+        return spec.compile()

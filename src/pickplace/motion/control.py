@@ -1,0 +1,974 @@
+"""Joint and Cartesian impedance control of the UR5e, and the loops that run them in MuJoCo at 1 kHz.
+
+Control laws (pure functions of the measured state and a reference, returning arm torques (6,) in N m):
+
+* :func:`joint_impedance`: ``tau = Kp (q_d - q) + Kd (qd_d - qd) + g(q)``, plus, with feedforward, the
+  inverse dynamics of the reference ``M(q) qdd_d + C(q, qd_d) qd_d`` (one ``pin.rnea`` call) and the
+  joints' viscous damping ``D qd_d``.
+* :func:`cartesian_impedance`: operational-space impedance of the tcp,
+  ``tau = J^T [Lambda (a_d - Jdot qd) + K e + D edot] + C(q, qd) qd + g(q) + D_joint qd + N^T tau_posture``,
+  with the 6D pose error ``e`` (world-aligned, SO(3) log), the task-space inertia ``Lambda = (J M^-1 J^T)^-1``
+  and the dynamically consistent null-space projector ``N^T = I - J^T Lambda J M^-1``.
+
+Both laws run on :class:`ArmModel`, the controller's own copy of the Pinocchio model. Two things make it
+match what MuJoCo integrates, so that feedforward is exact and feedback only mops up:
+
+* Pinocchio's MJCF parser keeps the joints' ``armature`` (``pin.Model.armature``) and ``crba``/``rnea``
+  include it (``M`` agrees with MuJoCo's to 1e-15); the joints' ``damping`` is parsed too
+  (``pin.Model.damping``) but no Pinocchio algorithm applies it, so the laws add ``D qd`` themselves.
+* MuJoCo's Euler and implicit integrators treat joint damping implicitly: the velocity update solves
+  ``(M + h D) dv = h f``. The controller's model therefore carries an *effective* armature
+  ``armature + h * damping`` (h the timestep), so ``rnea`` and ``crba`` return the inertia the step really
+  applies (about 1 % on the wrists).
+
+A held object is unknown to the robot model: :class:`Payload` (mass, centre of mass and inertia in the tcp
+frame) is added rigidly to the tcp's parent joint (wrist 3) of the controller's model.
+
+Loops (:func:`track`, :func:`hold`, :func:`move_vertical`) step the simulation once per control step
+(``mujoco.mj_step``, the model's timestep), write the six motor controls only (never the gripper's), clip
+the torques to ``robot.torque_limits_nm`` and count the clipped steps, call an optional ``hook(data)`` after
+every step (it may raise a :class:`~pickplace.errors.PickPlaceError` to abort; it propagates), and return
+frozen records with figures and time series.
+
+References are made consistent with MuJoCo's semi-implicit Euler step (``v' = v + h a``, ``q' = q + h v'``):
+positions are sampled on the step grid, the velocity reference is their backward difference and the
+acceleration reference their second difference. A state that matches the reference then stays on it
+exactly; with ``qd_d = qd(t)`` instead, the simulated arm would lag the reference by ``h/2 * qd`` (about
+1.5 mrad at full speed).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+from pickplace.errors import ConfigError, ControlError
+from pickplace.motion.timing import Trajectory
+from pickplace.robot.model import Robot
+from pickplace.world.config import SceneConfig, check_range, check_vector
+
+log = logging.getLogger(__name__)
+
+N_ARM = 6
+#: Peak speed of a minimum-jerk profile over a distance d in a time T is 1.875 d / T.
+_MIN_JERK_PEAK_SPEED = 1.875
+#: Peak acceleration of a minimum-jerk profile is 10 / sqrt(3) d / T^2.
+_MIN_JERK_PEAK_ACCEL = 10.0 / math.sqrt(3.0)
+
+#: Armature (kg) given to the finger slides in the controller's model, so that ``computeMinverse``'s arm block
+#: is the inverse of the arm's inertia with the fingers locked (they are held by their servo or squeezed on
+#: the object). It changes nothing else the laws use: finger accelerations are zero in every call.
+LOCKED_FINGER_ARMATURE = 1e9
+
+Hook = Callable[[mujoco.MjData], None]
+
+
+# --------------------------------------------------------------------------- #
+# configuration
+# --------------------------------------------------------------------------- #
+
+
+@dataclass(frozen=True)
+class ControlConfig:
+    """Gains and motion parameters of the controllers (SI units).
+
+    Attributes:
+        joint_kp_nm_rad: Joint stiffness per arm joint (6,) (N m/rad).
+        joint_damping_ratio: Joint damping ratio; ``kd = 2 * ratio * sqrt(kp)`` (N m s/rad).
+        feedforward: Add the inverse dynamics of the reference (and the joints' damping) to joint control.
+        cartesian_stiffness_n_m: Translational stiffness of the tcp (N/m).
+        cartesian_rot_stiffness_nm_rad: Rotational stiffness of the tcp (N m/rad).
+        cartesian_damping_ratio: Damping ratio of each task axis, ``d_i = 2 * ratio * sqrt(k_i * Lambda_ii)``
+            with Lambda the task-space inertia; also used for the posture gain.
+        posture_kp_nm_rad: Null-space posture stiffness (N m/rad), towards q at the start of a Cartesian
+            move. The UR5e has 6 joints and the tcp task has 6 axes, so the null space is empty away from
+            singularities and this term is projected to ~0; it only acts if the arm is redundant.
+        vertical_speed_m_s: Peak tcp speed of a vertical move (m/s), minimum-jerk profile.
+        vertical_accel_m_s2: Peak tcp acceleration of a vertical move (m/s^2).
+        vertical_min_duration_s: Shortest vertical move (s).
+        height_tolerance_m: A vertical move ends when the tcp is this close to the target height (m) ...
+        settle_speed_m_s: ... and the tcp moves slower than this (m/s), after the profile has ended.
+        settle_timeout_s: Time allowed after the profile's end to meet both (s); then it times out.
+        max_joint_error_rad: Joint tracking error (any joint) beyond which a joint loop aborts (rad).
+        max_tcp_error_m: Tcp position error beyond which a Cartesian move aborts (m).
+    """
+
+    joint_kp_nm_rad: tuple[float, ...] = (200.0, 200.0, 200.0, 100.0, 100.0, 100.0)
+    joint_damping_ratio: float = 1.0
+    feedforward: bool = True
+    cartesian_stiffness_n_m: float = 3000.0
+    cartesian_rot_stiffness_nm_rad: float = 300.0
+    cartesian_damping_ratio: float = 1.0
+    posture_kp_nm_rad: float = 10.0
+    vertical_speed_m_s: float = 0.6
+    vertical_accel_m_s2: float = 4.0
+    vertical_min_duration_s: float = 0.3
+    height_tolerance_m: float = 2e-4
+    settle_speed_m_s: float = 2e-3
+    settle_timeout_s: float = 1.0
+    max_joint_error_rad: float = 0.1
+    max_tcp_error_m: float = 0.02
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        set_(self, "joint_kp_nm_rad", check_vector("control.joint_kp_nm_rad", self.joint_kp_nm_rad, N_ARM,
+                                                   0.0, 1e5, lo_open=True, unit="N m/rad"))
+        set_(self, "joint_damping_ratio", check_range("control.joint_damping_ratio", self.joint_damping_ratio,
+                                                      0.0, 10.0, lo_open=True))
+        if not isinstance(self.feedforward, bool):
+            raise ConfigError("control.feedforward", self.feedforward, "must be true or false")
+        set_(self, "cartesian_stiffness_n_m", check_range(
+            "control.cartesian_stiffness_n_m", self.cartesian_stiffness_n_m, 0.0, 1e6, lo_open=True, unit="N/m"))
+        set_(self, "cartesian_rot_stiffness_nm_rad", check_range(
+            "control.cartesian_rot_stiffness_nm_rad", self.cartesian_rot_stiffness_nm_rad, 0.0, 1e5, lo_open=True,
+            unit="N m/rad"))
+        set_(self, "cartesian_damping_ratio", check_range(
+            "control.cartesian_damping_ratio", self.cartesian_damping_ratio, 0.0, 10.0, lo_open=True))
+        set_(self, "posture_kp_nm_rad", check_range("control.posture_kp_nm_rad", self.posture_kp_nm_rad,
+                                                    0.0, 1e4, unit="N m/rad"))
+        set_(self, "vertical_speed_m_s", check_range("control.vertical_speed_m_s", self.vertical_speed_m_s,
+                                                     0.0, 2.0, lo_open=True, unit="m/s"))
+        set_(self, "vertical_accel_m_s2", check_range("control.vertical_accel_m_s2", self.vertical_accel_m_s2,
+                                                      0.0, 20.0, lo_open=True, unit="m/s^2"))
+        set_(self, "vertical_min_duration_s", check_range(
+            "control.vertical_min_duration_s", self.vertical_min_duration_s, 0.0, 10.0, unit="s"))
+        set_(self, "height_tolerance_m", check_range("control.height_tolerance_m", self.height_tolerance_m,
+                                                     0.0, 0.01, lo_open=True, unit="m"))
+        set_(self, "settle_speed_m_s", check_range("control.settle_speed_m_s", self.settle_speed_m_s,
+                                                   0.0, 0.1, lo_open=True, unit="m/s"))
+        set_(self, "settle_timeout_s", check_range("control.settle_timeout_s", self.settle_timeout_s,
+                                                   0.0, 10.0, unit="s"))
+        set_(self, "max_joint_error_rad", check_range("control.max_joint_error_rad", self.max_joint_error_rad,
+                                                      0.0, math.pi, lo_open=True, unit="rad"))
+        set_(self, "max_tcp_error_m", check_range("control.max_tcp_error_m", self.max_tcp_error_m,
+                                                  0.0, 1.0, lo_open=True, unit="m"))
+
+    @property
+    def joint_kp(self) -> np.ndarray:
+        """Joint stiffness (6,) (N m/rad)."""
+        return np.array(self.joint_kp_nm_rad)
+
+    @property
+    def joint_kd(self) -> np.ndarray:
+        """Joint damping (6,) (N m s/rad): ``2 * ratio * sqrt(kp)``."""
+        return 2.0 * self.joint_damping_ratio * np.sqrt(self.joint_kp)
+
+    @property
+    def cartesian_stiffness(self) -> np.ndarray:
+        """Task stiffness (6,): translational (N/m) then rotational (N m/rad)."""
+        return np.array([self.cartesian_stiffness_n_m] * 3 + [self.cartesian_rot_stiffness_nm_rad] * 3)
+
+    @property
+    def posture_kd(self) -> float:
+        """Null-space posture damping (N m s/rad): ``2 * cartesian_damping_ratio * sqrt(posture_kp)``."""
+        return 2.0 * self.cartesian_damping_ratio * math.sqrt(self.posture_kp_nm_rad)
+
+    def vertical_duration_s(self, distance_m: float) -> float:
+        """Duration (s) of a minimum-jerk vertical move over ``distance_m`` within the speed/accel limits."""
+        d = abs(distance_m)
+        return max(self.vertical_min_duration_s, _MIN_JERK_PEAK_SPEED * d / self.vertical_speed_m_s,
+                   math.sqrt(_MIN_JERK_PEAK_ACCEL * d / self.vertical_accel_m_s2))
+
+
+@dataclass(frozen=True)
+class Payload:
+    """An object held rigidly at the tcp, unknown to the robot model.
+
+    Attributes:
+        mass_kg: Mass (kg).
+        com_tcp_m: Centre of mass in the tcp frame (3,) (m).
+        inertia_kg_m2: Principal moments of inertia about the centre of mass, along the tcp axes (3,) (kg m^2).
+    """
+
+    mass_kg: float
+    com_tcp_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    inertia_kg_m2: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        set_(self, "mass_kg", check_range("payload.mass_kg", self.mass_kg, 0.0, 5.0, unit="kg"))
+        set_(self, "com_tcp_m", check_vector("payload.com_tcp_m", self.com_tcp_m, 3, -0.5, 0.5, unit="m"))
+        set_(self, "inertia_kg_m2", check_vector("payload.inertia_kg_m2", self.inertia_kg_m2, 3, 0.0, 1.0,
+                                                 unit="kg m^2"))
+
+    @classmethod
+    def cube(cls, scene: SceneConfig, com_tcp_m: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> Payload:
+        """The scene's cube (mass, solid-cube inertia ``m s^2 / 6``) with its centre at ``com_tcp_m`` (m)."""
+        i = scene.cube_mass_kg * scene.cube_size_m**2 / 6.0
+        return cls(scene.cube_mass_kg, com_tcp_m, (i, i, i))
+
+
+# --------------------------------------------------------------------------- #
+# the controller's model
+# --------------------------------------------------------------------------- #
+
+
+@dataclass(frozen=True, eq=False)
+class ArmModel:
+    """The controller's view of the arm: its own Pinocchio model (plus payload) and scratch buffers.
+
+    Build it with :func:`arm_model` once per motion, not per step. The laws write into ``data`` and the
+    scratch arrays; nothing else is kept between calls.
+
+    Attributes:
+        model: Pinocchio model (6 arm joints + 2 finger slides): arm armature = MuJoCo armature + h * damping
+            (implicit damping), finger armature :data:`LOCKED_FINGER_ARMATURE`, payload added to the tcp's
+            parent joint.
+        data: Its data (scratch).
+        tcp_frame: Frame id of the tcp.
+        damping: Viscous damping of the arm joints (6,) (N m s/rad).
+        torque_limits_nm: Actuator limits (6,) (N m).
+        timestep_s: Simulation (= control) step (s).
+        payload: The payload included, or None.
+    """
+
+    model: pin.Model
+    data: pin.Data
+    tcp_frame: int
+    damping: np.ndarray
+    torque_limits_nm: np.ndarray
+    timestep_s: float
+    payload: Payload | None
+    _q: np.ndarray = field(repr=False)  # (nq,) scratch
+    _v: np.ndarray = field(repr=False)  # (nv,) scratch
+    _a: np.ndarray = field(repr=False)  # (nv,) scratch
+    _zero: np.ndarray = field(repr=False)  # (nv,) zeros
+
+
+def implicit_damping(m: mujoco.MjModel) -> bool:
+    """Whether MuJoCo's integrator treats joint damping implicitly (``(M + h D) dv = h f``).
+
+    True for ``implicit`` and ``implicitfast``, and for ``Euler`` unless ``eulerdamp`` is disabled; False
+    for RK4.
+    """
+    integ = mujoco.mjtIntegrator(m.opt.integrator)
+    if integ == mujoco.mjtIntegrator.mjINT_RK4:
+        return False
+    if integ == mujoco.mjtIntegrator.mjINT_EULER:
+        return not (m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP)
+    return True
+
+
+def arm_model(robot: Robot, payload: Payload | None = None) -> ArmModel:
+    """The controller's model of ``robot``'s arm, holding ``payload`` (if any) at the tcp.
+
+    Args:
+        robot: The models.
+        payload: An object held at the tcp, added rigidly to the tcp's parent joint.
+
+    Returns:
+        A fresh :class:`ArmModel` (its own model copy and data).
+    """
+    model = robot.pin.copy()
+    dt = float(robot.mj.opt.timestep)
+    damping = np.array(model.damping[:N_ARM])
+    armature = np.array(model.armature)
+    if implicit_damping(robot.mj):
+        armature[:N_ARM] += dt * damping
+    armature[N_ARM:] = LOCKED_FINGER_ARMATURE
+    model.armature = armature
+    if payload is not None and payload.mass_kg > 0.0:
+        frame = model.frames[robot.pin_tcp_frame]
+        inertia = pin.Inertia(payload.mass_kg, np.array(payload.com_tcp_m), np.diag(payload.inertia_kg_m2))
+        model.inertias[frame.parentJoint] = model.inertias[frame.parentJoint] + frame.placement.act(inertia)
+    nv = model.nv
+    return ArmModel(model=model, data=model.createData(), tcp_frame=robot.pin_tcp_frame, damping=damping,
+                    torque_limits_nm=np.array(robot.torque_limits_nm, dtype=float), timestep_s=dt,
+                    payload=payload, _q=np.zeros(model.nq), _v=np.zeros(nv), _a=np.zeros(nv),
+                    _zero=np.zeros(nv))
+
+
+# --------------------------------------------------------------------------- #
+# control laws
+# --------------------------------------------------------------------------- #
+
+
+def joint_impedance(
+    arm: ArmModel,
+    q: np.ndarray,
+    qd: np.ndarray,
+    q_ref: np.ndarray,
+    qd_ref: np.ndarray,
+    qdd_ref: np.ndarray,
+    kp: np.ndarray,
+    kd: np.ndarray,
+    *,
+    feedforward: bool = True,
+    finger_m: float = 0.0,
+) -> np.ndarray:
+    """Joint impedance with gravity compensation and optional inverse-dynamics feedforward.
+
+    ``tau = kp (q_ref - q) + kd (qd_ref - qd) + g(q)`` and, with ``feedforward``,
+    ``+ M(q) qdd_ref + C(q, qd_ref) qd_ref + D qd_ref`` (D the joints' viscous damping).
+
+    Args:
+        arm: The controller's model.
+        q, qd: Measured arm positions (6,) (rad) and velocities (6,) (rad/s).
+        q_ref, qd_ref, qdd_ref: Reference positions (rad), velocities (rad/s), accelerations (rad/s^2) (6,).
+        kp, kd: Stiffness (6,) (N m/rad) and damping (6,) (N m s/rad).
+        feedforward: Include the reference's inverse dynamics.
+        finger_m: Finger slide travel (m), for the fingers' contribution to the dynamics.
+
+    Returns:
+        Unclipped arm torques (6,) (N m).
+    """
+    qp = arm._q
+    qp[:N_ARM] = q
+    qp[N_ARM:] = finger_m
+    if feedforward:
+        arm._v[:N_ARM] = qd_ref
+        arm._a[:N_ARM] = qdd_ref
+        tau = pin.rnea(arm.model, arm.data, qp, arm._v, arm._a)[:N_ARM] + arm.damping * qd_ref
+    else:
+        tau = pin.computeGeneralizedGravity(arm.model, arm.data, qp)[:N_ARM].copy()
+    tau += kp * (q_ref - q)
+    tau += kd * (qd_ref - qd)
+    return tau
+
+
+class CartesianCommand(NamedTuple):
+    """What :func:`cartesian_impedance` computed.
+
+    Attributes:
+        tau: Unclipped arm torques (6,) (N m).
+        error: Pose error (6,) ``[p_ref - p (m); log3(R_ref R^T) (rad)]``, world axes.
+        twist: Measured tcp twist (6,) ``[v (m/s); w (rad/s)]``, world axes.
+        position: Measured tcp position (3,) (m).
+    """
+
+    tau: np.ndarray
+    error: np.ndarray
+    twist: np.ndarray
+    position: np.ndarray
+
+
+def cartesian_impedance(
+    arm: ArmModel,
+    q: np.ndarray,
+    qd: np.ndarray,
+    p_ref: np.ndarray,
+    v_ref: np.ndarray,
+    a_ref: np.ndarray,
+    R_ref: np.ndarray,
+    stiffness: np.ndarray,
+    damping_ratio: float,
+    q_posture: np.ndarray,
+    posture_kp: float,
+    posture_kd: float,
+    *,
+    finger_m: float = 0.0,
+) -> CartesianCommand:
+    """Operational-space impedance of the tcp with gravity compensation and null-space posture control.
+
+    ``F = Lambda (a_d - Jdot qd) + K e + D edot`` with ``a_d = [a_ref; 0]``, ``D_ii = 2 zeta sqrt(K_ii Lambda_ii)``;
+    ``tau = J^T F + C(q, qd) qd + g(q) + D_joint qd + N^T (posture_kp (q_posture - q) - posture_kd qd)``.
+    With an exact model the tcp error obeys ``Lambda e'' + D e' + K e = 0`` (the orientation reference is
+    fixed).
+
+    Args:
+        arm: The controller's model.
+        q, qd: Measured arm positions (6,) (rad) and velocities (6,) (rad/s).
+        p_ref, v_ref, a_ref: Reference tcp position (m), velocity (m/s), acceleration (m/s^2) (3,), world.
+        R_ref: Reference tcp orientation (3, 3) in the world (held fixed: zero angular velocity).
+        stiffness: Task stiffness (6,): translational (N/m), rotational (N m/rad).
+        damping_ratio: Damping ratio of each task axis.
+        q_posture: Posture (6,) (rad) regulated in the null space.
+        posture_kp, posture_kd: Posture stiffness (N m/rad) and damping (N m s/rad).
+        finger_m: Finger slide travel (m).
+
+    Returns:
+        The torques and the measured tcp error, twist and position.
+
+    Raises:
+        numpy.linalg.LinAlgError: ``J M^-1 J^T`` is singular (the arm is at a kinematic singularity).
+    """
+    model, data, fid = arm.model, arm.data, arm.tcp_frame
+    qp, vp = arm._q, arm._v
+    qp[:N_ARM] = q
+    qp[N_ARM:] = finger_m
+    vp[:N_ARM] = qd
+    vp[N_ARM:] = 0.0
+    # one pass: kinematics with zero joint acceleration (so the frame's classical acceleration is Jdot qd),
+    # joint Jacobians, M and C(q, qd) qd + g(q); then M^-1 with the finger slides locked (see arm_model)
+    pin.computeAllTerms(model, data, qp, vp)
+    jdot_qd = pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED).vector
+    J = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[:, :N_ARM]
+    T = pin.updateFramePlacement(model, data, fid)
+    nle = data.nle[:N_ARM].copy()
+    Minv = pin.computeMinverse(model, data, qp)[:N_ARM, :N_ARM]
+
+    position = T.translation.copy()
+    error = np.empty(6)
+    error[:3] = p_ref - position
+    error[3:] = pin.log3(R_ref @ T.rotation.T)
+    twist = J @ qd
+    edot = -twist
+    edot[:3] += v_ref
+    acc = -jdot_qd
+    acc[:3] += a_ref
+
+    JMinv = J @ Minv  # J M^-1 (6, 6)
+    Lam = np.linalg.inv(JMinv @ J.T)
+    d = 2.0 * damping_ratio * np.sqrt(stiffness * np.abs(Lam.diagonal()))
+    tau0 = posture_kp * (q_posture - q) - posture_kd * qd
+    # J^T F + N^T tau0 with N^T = I - J^T Lambda J M^-1
+    F = Lam @ (acc - JMinv @ tau0) + stiffness * error + d * edot
+    tau = J.T @ F
+    tau += tau0
+    tau += nle
+    tau += arm.damping * qd
+    return CartesianCommand(tau, error, twist, position)
+
+
+def saturate(tau: np.ndarray, limits: np.ndarray) -> bool:
+    """Clip ``tau`` (6,) (N m) in place to ``±limits`` (6,); return whether any entry was clipped."""
+    if (abs(tau) > limits).any():
+        tau.clip(-limits, limits, out=tau)
+        return True
+    return False
+
+
+def _selector(idx: np.ndarray) -> slice | np.ndarray:
+    """A slice for consecutive indices (a view, cheaper than fancy indexing every step), else the indices."""
+    idx = np.asarray(idx)
+    if idx.size and (np.diff(idx) == 1).all():
+        return slice(int(idx[0]), int(idx[-1]) + 1)
+    return idx
+
+
+def min_jerk(t: np.ndarray, duration_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Minimum-jerk (quintic) profile from 0 to 1 over ``duration_s``, at rest outside it.
+
+    Args:
+        t: Times (N,) (s).
+        duration_s: Profile duration (s), > 0.
+
+    Returns:
+        Position s (N,) (1), velocity (N,) (1/s) and acceleration (N,) (1/s^2).
+    """
+    tau = np.clip(np.asarray(t, dtype=float) / duration_s, 0.0, 1.0)
+    s = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
+    sd = 30.0 * tau**2 * (1.0 - tau) ** 2 / duration_s
+    sdd = 60.0 * tau * (1.0 - tau) * (1.0 - 2.0 * tau) / duration_s**2
+    return s, sd, sdd
+
+
+# --------------------------------------------------------------------------- #
+# records
+# --------------------------------------------------------------------------- #
+
+
+@dataclass(frozen=True, eq=False)
+class TrackingRecord:
+    """What a joint-space loop (:func:`track`, :func:`hold`) measured.
+
+    Errors are ``|q_ref - q|`` per joint, at every control step (the state before the step) and at the end.
+
+    Attributes:
+        max_error_rad: Largest joint error over joints and time (rad).
+        rms_error_rad: RMS joint error over joints and time (rad).
+        final_error_rad: Largest joint error at the end (rad).
+        saturation_events: Control steps in which at least one torque was clipped.
+        duration_s: Simulated time (s).
+        steps: Control (= simulation) steps taken.
+        t: Times (steps + 1,) (s) from the start of the loop.
+        q: Measured arm positions (steps + 1, 6) (rad).
+        q_ref: Reference positions (steps + 1, 6) (rad).
+        tau: Applied (clipped) torques (steps, 6) (N m).
+    """
+
+    max_error_rad: float
+    rms_error_rad: float
+    final_error_rad: float
+    saturation_events: int
+    duration_s: float
+    steps: int
+    t: np.ndarray = field(repr=False)
+    q: np.ndarray = field(repr=False)
+    q_ref: np.ndarray = field(repr=False)
+    tau: np.ndarray = field(repr=False)
+
+
+@dataclass(frozen=True, eq=False)
+class CartesianRecord:
+    """What :func:`move_vertical` measured.
+
+    Errors are measured at every control step (the state before the step) and at the end, against the
+    reference: the minimum-jerk height, the start (x, y) and the start orientation.
+
+    Attributes:
+        reached: The tcp came within the height tolerance at below the settle speed after the profile.
+        final_height_error_m: Tcp height minus target height at the end (m), signed.
+        lateral_drift_max_m: Largest horizontal distance of the tcp from its start (x, y) (m).
+        orientation_error_max_rad: Largest rotation of the tcp away from its start orientation (rad), which is
+            the orientation reference.
+        position_error_max_m: Largest distance of the tcp from its reference position (m).
+        position_error_rms_m: RMS distance of the tcp from its reference position (m).
+        saturation_events: Control steps in which at least one torque was clipped.
+        duration_s: Simulated time (s).
+        steps: Control steps taken.
+        profile_duration_s: Duration of the minimum-jerk height profile (s).
+        t: Times (steps + 1,) (s).
+        z: Measured tcp height (steps + 1,) (m).
+        z_ref: Reference tcp height (steps + 1,) (m).
+        q: Measured arm positions (steps + 1, 6) (rad).
+        tau: Applied (clipped) torques (steps, 6) (N m).
+    """
+
+    reached: bool
+    final_height_error_m: float
+    lateral_drift_max_m: float
+    orientation_error_max_rad: float
+    position_error_max_m: float
+    position_error_rms_m: float
+    saturation_events: int
+    duration_s: float
+    steps: int
+    profile_duration_s: float
+    t: np.ndarray = field(repr=False)
+    z: np.ndarray = field(repr=False)
+    z_ref: np.ndarray = field(repr=False)
+    q: np.ndarray = field(repr=False)
+    tau: np.ndarray = field(repr=False)
+
+
+@dataclass(frozen=True)
+class PhaseTracking:
+    """Tracking errors of every control loop that ran in one phase (or in a whole episode).
+
+    Joint-space loops (trajectories and holds) are measured in joint space, Cartesian moves at the tcp; a
+    figure is NaN when no loop of its kind ran.
+
+    Attributes:
+        joint_error_max_rad: Largest ``|q_ref - q|`` over joints and steps of the joint-space loops (rad).
+        joint_error_rms_rad: RMS of ``q_ref - q`` over joints and steps of those loops (rad).
+        tcp_position_error_max_m: Largest distance of the tcp from its reference in the Cartesian moves (m).
+        tcp_orientation_error_max_rad: Largest rotation of the tcp away from its reference orientation in the
+            Cartesian moves (rad).
+        joint_steps: Control steps of joint-space loops.
+        cartesian_steps: Control steps of Cartesian moves.
+    """
+
+    joint_error_max_rad: float = math.nan
+    joint_error_rms_rad: float = math.nan
+    tcp_position_error_max_m: float = math.nan
+    tcp_orientation_error_max_rad: float = math.nan
+    joint_steps: int = 0
+    cartesian_steps: int = 0
+
+
+class TrackingTally:
+    """Adds up the records of control loops into a :class:`PhaseTracking` (the one mutable piece)."""
+
+    def __init__(self) -> None:
+        self._joint_max = self._tcp_max = self._rot_max = -math.inf
+        self._joint_sq = 0.0
+        self._joint_n = 0
+        self._joint_steps = self._cartesian_steps = 0
+
+    def add(self, rec: TrackingRecord | CartesianRecord) -> None:
+        """Count one loop's record."""
+        if isinstance(rec, TrackingRecord):
+            samples = (rec.steps + 1) * N_ARM
+            self._joint_max = max(self._joint_max, rec.max_error_rad)
+            self._joint_sq += rec.rms_error_rad**2 * samples
+            self._joint_n += samples
+            self._joint_steps += rec.steps
+        else:
+            self._tcp_max = max(self._tcp_max, rec.position_error_max_m)
+            self._rot_max = max(self._rot_max, rec.orientation_error_max_rad)
+            self._cartesian_steps += rec.steps
+
+    def result(self) -> PhaseTracking:
+        """The errors so far."""
+        def finite(v: float) -> float:
+            return v if math.isfinite(v) else math.nan
+
+        return PhaseTracking(
+            joint_error_max_rad=finite(self._joint_max),
+            joint_error_rms_rad=math.sqrt(self._joint_sq / self._joint_n) if self._joint_n else math.nan,
+            tcp_position_error_max_m=finite(self._tcp_max), tcp_orientation_error_max_rad=finite(self._rot_max),
+            joint_steps=self._joint_steps, cartesian_steps=self._cartesian_steps)
+
+
+# --------------------------------------------------------------------------- #
+# loops
+# --------------------------------------------------------------------------- #
+
+
+@dataclass(frozen=True, eq=False)
+class JointNoise:
+    """Gaussian noise on the joint positions the controller reads (a sensor fault).
+
+    Attributes:
+        std_rad: Standard deviation per joint (rad).
+        rng: The seeded generator the noise is drawn from.
+    """
+
+    std_rad: float
+    rng: np.random.Generator
+
+    def sample(self) -> np.ndarray:
+        """One draw (6,) (rad)."""
+        return self.rng.normal(0.0, self.std_rad, N_ARM)
+
+
+def _grid_reference(q: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Step-consistent reference from positions q (n + 2, k) sampled at t = -dt, 0, dt, ..., n dt.
+
+    Returns:
+        Positions, backward-difference velocities and second-difference accelerations, each (n + 1, k), at
+        t = 0, dt, ..., n dt (the last acceleration assumes the reference is at rest after n dt).
+    """
+    q = np.vstack([q, q[-1:]])
+    pos = q[1:-1]
+    vel = (q[1:-1] - q[:-2]) / dt
+    acc = (q[2:] - 2.0 * q[1:-1] + q[:-2]) / dt**2
+    return pos, vel, acc
+
+
+def _run_joint(
+    robot: Robot,
+    d: mujoco.MjData,
+    phase: str,
+    q_ref: np.ndarray,
+    qd_ref: np.ndarray,
+    qdd_ref: np.ndarray,
+    config: ControlConfig,
+    payload: Payload | None,
+    hook: Hook | None,
+    noise: JointNoise | None = None,
+) -> TrackingRecord:
+    """Run joint impedance along a step-grid reference (n + 1, 6) for n steps."""
+    m, h = robot.mj, robot.handles
+    arm = arm_model(robot, payload)
+    n = len(q_ref) - 1
+    dt = arm.timestep_s
+    kp, kd, ff = config.joint_kp, config.joint_kd, config.feedforward
+    limits = arm.torque_limits_nm
+    qpos, qvel, ctrl = d.qpos, d.qvel, d.ctrl  # arrays aliasing d's memory
+    arm_q, arm_v, arm_u = _selector(h.arm_qpos), _selector(h.arm_dof), _selector(h.arm_actuators)
+    finger = int(h.finger_qpos[0])
+    q_log = np.empty((n + 1, N_ARM))
+    tau_log = np.empty((n, N_ARM))
+    saturated = 0
+
+    def record(steps: int) -> TrackingRecord:
+        err = np.abs(q_ref[: steps + 1] - q_log[: steps + 1])
+        return TrackingRecord(
+            max_error_rad=float(err.max()), rms_error_rad=float(np.sqrt(np.mean(err**2))),
+            final_error_rad=float(err[-1].max()), saturation_events=saturated, duration_s=steps * dt,
+            steps=steps, t=np.arange(steps + 1) * dt, q=q_log[: steps + 1].copy(), q_ref=q_ref[: steps + 1].copy(),
+            tau=tau_log[:steps].copy())
+
+    for k in range(n + 1):
+        q = qpos[arm_q] if noise is None else qpos[arm_q] + noise.sample()
+        q_log[k] = q
+        err = float(abs(q_ref[k] - q).max())
+        if not err <= config.max_joint_error_rad:  # also catches NaN
+            raise ControlError(phase, f"joint error {err:.4g} rad exceeds {config.max_joint_error_rad:g} rad "
+                                      f"at t = {k * dt:.3f} s", record(k))
+        if k == n:
+            break
+        tau = joint_impedance(arm, q, qvel[arm_v], q_ref[k], qd_ref[k], qdd_ref[k], kp, kd, feedforward=ff,
+                              finger_m=qpos[finger])
+        if saturate(tau, limits):
+            saturated += 1
+        tau_log[k] = tau
+        ctrl[arm_u] = tau
+        mujoco.mj_step(m, d)
+        if hook is not None:
+            hook(d)
+    rec = record(n)
+    log.debug("%s: %d steps, max error %.3g rad, rms %.3g rad, final %.3g rad, %d saturated steps", phase,
+              rec.steps, rec.max_error_rad, rec.rms_error_rad, rec.final_error_rad, rec.saturation_events)
+    return rec
+
+
+def track(
+    robot: Robot,
+    data: mujoco.MjData,
+    trajectory: Trajectory,
+    config: ControlConfig,
+    *,
+    payload: Payload | None = None,
+    hook: Hook | None = None,
+    noise: JointNoise | None = None,
+    settle_s: float = 0.1,
+) -> TrackingRecord:
+    """Track a joint trajectory with joint impedance, then hold its final point for ``settle_s``.
+
+    Args:
+        robot: The models.
+        data: MuJoCo data, advanced in place. The arm should start near ``trajectory.sample(0)``.
+        trajectory: The reference (rad, rad/s, rad/s^2), from :func:`pickplace.motion.timing.retime`.
+        config: Gains.
+        payload: An object held at the tcp (compensated in gravity and feedforward).
+        hook: Called with ``data`` after every simulation step; may raise to abort.
+        noise: Noise added to the joint positions the controller reads (a sensor fault), or None.
+        settle_s: Time to hold the final point after the trajectory ends (s).
+
+    Returns:
+        The :class:`TrackingRecord`.
+
+    Raises:
+        ConfigError: ``settle_s`` is negative or not finite.
+        ControlError: the joint error exceeds ``config.max_joint_error_rad`` (or the state is not finite).
+    """
+    settle_s = check_range("track.settle_s", settle_s, 0.0, 60.0, unit="s")
+    dt = float(robot.mj.opt.timestep)
+    n = math.ceil(trajectory.duration_s / dt - 1e-9) + round(settle_s / dt)
+    qs, _, _ = trajectory.sample_many(np.arange(-1, n + 1) * dt)
+    q_ref, qd_ref, qdd_ref = _grid_reference(qs, dt)
+    return _run_joint(robot, data, "track", q_ref, qd_ref, qdd_ref, config, payload, hook, noise)
+
+
+def hold(
+    robot: Robot,
+    data: mujoco.MjData,
+    q: np.ndarray,
+    duration_s: float,
+    config: ControlConfig,
+    *,
+    payload: Payload | None = None,
+    hook: Hook | None = None,
+    noise: JointNoise | None = None,
+) -> TrackingRecord:
+    """Regulate the arm to a fixed configuration for ``duration_s`` (e.g. while the gripper closes).
+
+    Args:
+        robot: The models.
+        data: MuJoCo data, advanced in place.
+        q: Configuration to hold (6,) (rad).
+        duration_s: How long (s).
+        config: Gains.
+        payload: An object held at the tcp.
+        hook: Called with ``data`` after every simulation step; may raise to abort.
+        noise: Noise added to the joint positions the controller reads (a sensor fault), or None.
+
+    Returns:
+        The :class:`TrackingRecord` (errors relative to ``q``).
+
+    Raises:
+        ConfigError: ``q`` is not 6 finite numbers or ``duration_s`` is negative.
+        ControlError: the joint error exceeds ``config.max_joint_error_rad``.
+    """
+    target = np.array(check_vector("hold.q", q, N_ARM, unit="rad"))
+    duration_s = check_range("hold.duration_s", duration_s, 0.0, 3600.0, unit="s")
+    n = round(duration_s / float(robot.mj.opt.timestep))
+    q_ref = np.repeat(target[None], n + 1, axis=0)
+    zeros = np.zeros_like(q_ref)
+    return _run_joint(robot, data, "hold", q_ref, zeros, zeros, config, payload, hook, noise)
+
+
+def stop(
+    robot: Robot,
+    data: mujoco.MjData,
+    decel_rad_s2: np.ndarray | tuple[float, ...],
+    config: ControlConfig,
+    *,
+    payload: Payload | None = None,
+    hook: Hook | None = None,
+    noise: JointNoise | None = None,
+    settle_s: float = 0.1,
+) -> TrackingRecord:
+    """Bring a moving arm to rest along its direction of motion, then hold it (a category-2 stop).
+
+    The reference starts at the measured state and decelerates every joint uniformly, all reaching rest at the
+    same time ``T = max_j |qd_j| / decel_j``: ``q(t) = q0 + qd0 (t - t^2 / (2 T))``, so it ends at
+    ``q0 + qd0 T / 2``. Holding the current position instead would ask a fast arm to reverse at once: the
+    impedance overshoots by ``qd / omega`` and, at full speed, past ``config.max_joint_error_rad``.
+
+    Args:
+        robot: The models.
+        data: MuJoCo data, advanced in place.
+        decel_rad_s2: Deceleration limits per joint (6,) (rad/s^2), e.g. the trajectory's acceleration limits.
+        config: Gains.
+        payload: An object held at the tcp.
+        hook: Called with ``data`` after every simulation step; may raise to abort.
+        noise: Noise added to the joint positions the controller reads (a sensor fault), or None.
+        settle_s: Time to hold the rest position after the deceleration (s).
+
+    Returns:
+        The :class:`TrackingRecord` of the deceleration and the hold.
+
+    Raises:
+        ConfigError: a deceleration limit is not a positive finite number or ``settle_s`` is negative.
+        ControlError: the joint error exceeds ``config.max_joint_error_rad``.
+    """
+    decel = np.array(check_vector("stop.decel_rad_s2", decel_rad_s2, N_ARM, 0.0, 1e4, lo_open=True,
+                                  unit="rad/s^2"))
+    settle_s = check_range("stop.settle_s", settle_s, 0.0, 60.0, unit="s")
+    h = robot.handles
+    dt = float(robot.mj.opt.timestep)
+    q0 = data.qpos[h.arm_qpos].copy()
+    v0 = data.qvel[h.arm_dof].copy()
+    T = float(np.max(np.abs(v0) / decel))
+    n = math.ceil(T / dt - 1e-9) + round(settle_s / dt)
+    t = np.clip(np.arange(-1, n + 1) * dt, None, T)
+    s = t - t**2 / (2.0 * T) if T > 0.0 else np.zeros_like(t)  # distance travelled per unit initial velocity
+    q_ref, qd_ref, qdd_ref = _grid_reference(q0 + np.outer(s, v0), dt)
+    return _run_joint(robot, data, "stop", q_ref, qd_ref, qdd_ref, config, payload, hook, noise)
+
+
+def move_vertical(
+    robot: Robot,
+    data: mujoco.MjData,
+    target_z_m: float,
+    config: ControlConfig,
+    *,
+    payload: Payload | None = None,
+    hook: Hook | None = None,
+    noise: JointNoise | None = None,
+    duration_s: float | None = None,
+    raise_on_timeout: bool = True,
+) -> CartesianRecord:
+    """Move the tcp vertically to ``target_z_m`` with Cartesian impedance, holding x, y and orientation.
+
+    The height follows a minimum-jerk profile from the current height (duration from
+    :meth:`ControlConfig.vertical_duration_s` unless given); x, y and the orientation are regulated to their
+    values at the start; the posture at the start is regulated in the null space. The move ends once the
+    profile is over and the tcp is within ``config.height_tolerance_m`` of the target, moving slower than
+    ``config.settle_speed_m_s``; it times out ``config.settle_timeout_s`` after the profile's end.
+
+    Args:
+        robot: The models.
+        data: MuJoCo data, advanced in place.
+        target_z_m: Target tcp height in the world (m).
+        config: Gains and motion parameters.
+        payload: An object held at the tcp.
+        hook: Called with ``data`` after every simulation step; may raise to abort.
+        noise: Noise added to the joint positions the controller reads (a sensor fault), or None.
+        duration_s: Profile duration (s), overriding the config's speed and acceleration limits.
+        raise_on_timeout: Raise :class:`ControlError` on timeout; otherwise return with ``reached=False``.
+
+    Returns:
+        The :class:`CartesianRecord`.
+
+    Raises:
+        ConfigError: ``target_z_m`` or ``duration_s`` is invalid.
+        ControlError: timeout (if ``raise_on_timeout``), or a tcp error beyond ``config.max_tcp_error_m``.
+    """
+    target_z_m = check_range("move_vertical.target_z_m", target_z_m, -2.0, 2.0, unit="m")
+    m, h = robot.mj, robot.handles
+    arm = arm_model(robot, payload)
+    dt = arm.timestep_s
+    qpos, qvel, ctrl = data.qpos, data.qvel, data.ctrl  # arrays aliasing data's memory
+    arm_q, arm_v, arm_u = _selector(h.arm_qpos), _selector(h.arm_dof), _selector(h.arm_actuators)
+    finger = int(h.finger_qpos[0])
+
+    q0 = qpos[arm_q].copy()
+    qp0 = robot.pin_q(q0, float(qpos[finger]))
+    pin.framesForwardKinematics(arm.model, arm.data, qp0)
+    T0 = pin.SE3(arm.data.oMf[arm.tcp_frame])
+    R_ref, p0 = T0.rotation.copy(), T0.translation.copy()
+    dz = target_z_m - p0[2]
+    T = (check_range("move_vertical.duration_s", duration_s, dt, 60.0, unit="s") if duration_s is not None
+         else max(config.vertical_duration_s(dz), dt))
+    n_profile = math.ceil(T / dt - 1e-9)
+    n_max = n_profile + round(config.settle_timeout_s / dt)
+    s, _, _ = min_jerk(np.arange(-1, n_max + 1) * dt, T)
+    z_grid = p0[2] + dz * s
+    z_ref, zd_ref, zdd_ref = (a[:, 0] for a in _grid_reference(z_grid[:, None], dt))
+
+    stiffness = config.cartesian_stiffness
+    zeta, post_kp, post_kd = config.cartesian_damping_ratio, config.posture_kp_nm_rad, config.posture_kd
+    limits = arm.torque_limits_nm
+    p_ref, v_ref, a_ref = p0.copy(), np.zeros(3), np.zeros(3)
+    z_log = np.empty(n_max + 1)
+    pos_err_log = np.empty(n_max + 1)
+    q_log = np.empty((n_max + 1, N_ARM))
+    tau_log = np.empty((n_max, N_ARM))
+    saturated = 0
+    drift = rot_err = 0.0
+    reached = False
+
+    def record(steps: int, z_now: float) -> CartesianRecord:
+        pos = pos_err_log[: steps + 1]
+        return CartesianRecord(
+            reached=reached, final_height_error_m=z_now - target_z_m, lateral_drift_max_m=drift,
+            orientation_error_max_rad=rot_err, position_error_max_m=float(pos.max()),
+            position_error_rms_m=float(np.sqrt(np.mean(pos**2))), saturation_events=saturated,
+            duration_s=steps * dt, steps=steps,
+            profile_duration_s=float(T), t=np.arange(steps + 1) * dt, z=z_log[: steps + 1].copy(),
+            z_ref=z_ref[: steps + 1].copy(), q=q_log[: steps + 1].copy(), tau=tau_log[:steps].copy())
+
+    k = 0
+    x0, y0 = float(p0[0]), float(p0[1])
+    tol_z, tol_v, tol_e = config.height_tolerance_m, config.settle_speed_m_s, config.max_tcp_error_m
+    for k in range(n_max + 1):
+        q = qpos[arm_q] if noise is None else qpos[arm_q] + noise.sample()
+        p_ref[2], v_ref[2], a_ref[2] = z_ref[k], zd_ref[k], zdd_ref[k]
+        try:
+            cmd = cartesian_impedance(arm, q, qvel[arm_v], p_ref, v_ref, a_ref, R_ref, stiffness, zeta, q0,
+                                      post_kp, post_kd, finger_m=qpos[finger])
+        except np.linalg.LinAlgError as exc:  # J M^-1 J^T singular: the arm is at a kinematic singularity
+            raise ControlError("move_vertical", f"singular tcp Jacobian at q = {np.round(q, 4).tolist()} rad",
+                               record(k - 1, float(z_log[k - 1])) if k else None) from exc
+        x, y, z = cmd.position.tolist()
+        ex, ey, ez, rx, ry, rz = cmd.error.tolist()
+        z_log[k] = z
+        q_log[k] = q
+        drift = max(drift, math.hypot(x - x0, y - y0))
+        rot_err = max(rot_err, math.sqrt(rx * rx + ry * ry + rz * rz))
+        pos_err = math.sqrt(ex * ex + ey * ey + ez * ez)
+        pos_err_log[k] = pos_err
+        if not pos_err <= tol_e:  # also catches NaN
+            raise ControlError("move_vertical", f"tcp error {pos_err * 1e3:.3g} mm exceeds {tol_e * 1e3:.3g} mm "
+                                                f"at t = {k * dt:.3f} s", record(k, z))
+        if k >= n_profile and abs(z - target_z_m) <= tol_z:
+            vx, vy, vz = cmd.twist[:3].tolist()
+            if math.sqrt(vx * vx + vy * vy + vz * vz) <= tol_v:
+                reached = True
+                break
+        if k == n_max:
+            break
+        tau = cmd.tau
+        if saturate(tau, limits):
+            saturated += 1
+        tau_log[k] = tau
+        ctrl[arm_u] = tau
+        mujoco.mj_step(m, data)
+        if hook is not None:
+            hook(data)
+    rec = record(k, float(z_log[k]))
+    log.debug("move_vertical to %.4f m: reached %s after %.3f s (profile %.3f s), height error %.3g mm, "
+              "drift %.3g mm, orientation %.3g rad, %d saturated steps", target_z_m, rec.reached, rec.duration_s,
+              T, rec.final_height_error_m * 1e3, rec.lateral_drift_max_m * 1e3, rec.orientation_error_max_rad,
+              rec.saturation_events)
+    if not reached and raise_on_timeout:
+        raise ControlError("move_vertical", f"tcp not settled at {target_z_m:.4f} m within "
+                                            f"{config.settle_timeout_s:g} s after the {T:.3f} s profile: height "
+                                            f"error {rec.final_height_error_m * 1e3:.3g} mm (tolerance "
+                                            f"{config.height_tolerance_m * 1e3:.3g} mm)", rec)
+    return rec
+
+
+__all__ = [
+    "ArmModel",
+    "CartesianCommand",
+    "CartesianRecord",
+    "ControlConfig",
+    "Hook",
+    "Payload",
+    "PhaseTracking",
+    "TrackingRecord",
+    "TrackingTally",
+    "arm_model",
+    "cartesian_impedance",
+    "hold",
+    "implicit_damping",
+    "joint_impedance",
+    "min_jerk",
+    "move_vertical",
+    "saturate",
+    "stop",
+    "track",
+]

@@ -1,0 +1,339 @@
+"""Time-optimal time scaling of joint-space paths with TOPP-RA (the ``toppra`` package).
+
+:func:`retime` turns a collision-checked polyline of UR5e joint waypoints into a rest-to-rest
+trajectory that respects per-joint velocity and acceleration limits:
+
+1. validate the path and drop near-duplicate waypoints (they make TOPP-RA fail or crawl);
+2. insert points along long straight segments so the cubic spline hugs the polyline;
+3. parameterize the spline by cumulative joint-space arc length (rad), which keeps |dq/ds| ~ 1;
+4. optionally ask ``is_segment_valid`` about a dense sampling of the spline and densify again
+   (halving the segment length) while it is rejected;
+5. run TOPP-RA, then refine the grid locally wherever the piecewise-constant path acceleration
+   between gridpoints exceeds a limit.
+
+The output is evaluated exactly as TOPP-RA models it: constant path acceleration per grid stage.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import toppra
+import toppra.algorithm as talgo
+import toppra.constraint as tcon
+
+from pickplace.errors import ConfigError, TimingFailed
+from pickplace.world.config import check_int, check_range, check_vector
+
+logger = logging.getLogger(__name__)
+
+N_JOINTS = 6
+#: UR5e published joint speed limit, 180 deg/s on every joint (rad/s).
+UR5E_VELOCITY_LIMITS_RAD_S: tuple[float, ...] = (math.pi,) * N_JOINTS
+#: Joint acceleration limits used for the UR5e: shoulder/elbow 8, wrists 16 (rad/s^2).
+UR5E_ACCELERATION_LIMITS_RAD_S2: tuple[float, ...] = (8.0, 8.0, 8.0, 16.0, 16.0, 16.0)
+#: Velocity limits of the design note: 3.14 rad/s (joints 1-3), 6.28 rad/s (joints 4-6).
+DESIGN_NOTE_VELOCITY_LIMITS_RAD_S: tuple[float, ...] = (3.14, 3.14, 3.14, 6.28, 6.28, 6.28)
+_CHECK_FRACTIONS = np.linspace(0.0, 1.0, 9)  # where each grid stage is checked for limits
+
+
+@dataclass(frozen=True)
+class TimingConfig:
+    """Limits and numerical settings of :func:`retime`.
+
+    Attributes:
+        velocity_limits_rad_s: Per-joint speed limits (6,) (rad/s).
+        acceleration_limits_rad_s2: Per-joint acceleration limits (6,) (rad/s^2).
+        limit_margin: Fraction the limits are shrunk by before TOPP-RA, absorbing discretization error.
+        grid_step_rad: Initial TOPP-RA gridpoint spacing along the path (rad of joint-space arc length).
+        max_segment_rad: Longest straight piece between spline knots (rad); smaller hugs the polyline
+            more tightly but forces slower corners. Halved at each densification round.
+        min_separation_rad: Waypoints closer than this to their predecessor are dropped (rad).
+        check_step_rad: Spacing of the configurations passed to ``is_segment_valid`` (rad).
+        max_densify_rounds: Extra densification rounds allowed when ``is_segment_valid`` rejects.
+        max_refine_rounds: Rounds of local grid refinement where limits are exceeded between gridpoints.
+    """
+
+    velocity_limits_rad_s: tuple[float, ...] = UR5E_VELOCITY_LIMITS_RAD_S
+    acceleration_limits_rad_s2: tuple[float, ...] = UR5E_ACCELERATION_LIMITS_RAD_S2
+    limit_margin: float = 0.005
+    grid_step_rad: float = 0.01
+    max_segment_rad: float = 0.1
+    min_separation_rad: float = 1e-3
+    check_step_rad: float = 0.01
+    max_densify_rounds: int = 4
+    max_refine_rounds: int = 8
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        set_(self, "velocity_limits_rad_s", check_vector(
+            "timing.velocity_limits_rad_s", self.velocity_limits_rad_s, N_JOINTS, 0.0, lo_open=True,
+            unit="rad/s"))
+        set_(self, "acceleration_limits_rad_s2", check_vector(
+            "timing.acceleration_limits_rad_s2", self.acceleration_limits_rad_s2, N_JOINTS, 0.0,
+            lo_open=True, unit="rad/s^2"))
+        set_(self, "limit_margin", check_range("timing.limit_margin", self.limit_margin, 0.0, 0.2))
+        set_(self, "grid_step_rad", check_range("timing.grid_step_rad", self.grid_step_rad, 1e-4, 0.1,
+                                                unit="rad"))
+        set_(self, "max_segment_rad", check_range("timing.max_segment_rad", self.max_segment_rad, 0.005,
+                                                  unit="rad"))
+        set_(self, "min_separation_rad", check_range("timing.min_separation_rad", self.min_separation_rad,
+                                                     0.0, 0.05, unit="rad"))
+        set_(self, "check_step_rad", check_range("timing.check_step_rad", self.check_step_rad, 1e-4, 0.5,
+                                                 unit="rad"))
+        set_(self, "max_densify_rounds", check_int("timing.max_densify_rounds", self.max_densify_rounds,
+                                                   0, 10))
+        set_(self, "max_refine_rounds", check_int("timing.max_refine_rounds", self.max_refine_rounds, 0, 20))
+
+    @classmethod
+    def ur5e(cls, **overrides: object) -> TimingConfig:
+        """The default: UR5e published speed limits (pi rad/s) and 8/16 rad/s^2 accelerations."""
+        return cls(**overrides)  # type: ignore[arg-type]
+
+    @classmethod
+    def design_note(cls, **overrides: object) -> TimingConfig:
+        """Design-note limits: 3.14 rad/s (joints 1-3), 6.28 rad/s (joints 4-6), same accelerations."""
+        return cls(velocity_limits_rad_s=DESIGN_NOTE_VELOCITY_LIMITS_RAD_S, **overrides)  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """A rest-to-rest joint trajectory q(t) = spline(s(t)) with piecewise-constant path acceleration.
+
+    Attributes:
+        waypoints: The path it was built from (N, 6) (rad), read-only.
+        knots: The de-duplicated, densified points the cubic spline interpolates (K, 6) (rad).
+        duration_s: Total duration (s); 0 for a path that does not move.
+        max_deviation_rad: Largest joint-space distance (Euclidean, rad) between the spline and the
+            polyline at equal arc length, an upper bound of the distance to the polyline.
+        retime_time_s: Wall time spent inside TOPP-RA, all grid refinements included (s).
+        peak_velocity_ratio: max |qd_j| / vlim_j over the checked points (gridpoints and stage quarters).
+        peak_acceleration_ratio: max |qdd_j| / alim_j over the same points.
+        densify_rounds: Extra densification rounds that ``is_segment_valid`` required.
+    """
+
+    waypoints: np.ndarray
+    knots: np.ndarray
+    duration_s: float
+    max_deviation_rad: float
+    retime_time_s: float
+    peak_velocity_ratio: float
+    peak_acceleration_ratio: float
+    densify_rounds: int
+    _spline: toppra.SplineInterpolator | None = field(repr=False)
+    _s: np.ndarray = field(repr=False)  # (n,) gridpoints (rad)
+    _t: np.ndarray = field(repr=False)  # (n,) time at each gridpoint (s)
+    _sd: np.ndarray = field(repr=False)  # (n,) path speed ds/dt at each gridpoint (rad/s)
+    _u: np.ndarray = field(repr=False)  # (n-1,) constant path acceleration of each stage (rad/s^2)
+
+    def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Evaluate at one time ``t`` (s), clamped to [0, duration] and at rest outside.
+
+        Returns:
+            Joint positions (6,) (rad), velocities (6,) (rad/s) and accelerations (6,) (rad/s^2).
+        """
+        q, qd, qdd = self.sample_many(np.array([float(t)]))
+        return q[0], qd[0], qdd[0]
+
+    def sample_many(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Evaluate at times ``ts`` (N,) (s); see :meth:`sample`.
+
+        Returns:
+            Positions (N, 6) (rad), velocities (N, 6) (rad/s), accelerations (N, 6) (rad/s^2).
+        """
+        ts = np.asarray(ts, dtype=float)
+        if ts.ndim != 1 or not np.isfinite(ts).all():
+            raise ValueError(f"ts must be a 1-D array of finite times (s), got shape {ts.shape}")
+        qd = np.zeros((ts.size, N_JOINTS))
+        qdd = np.zeros((ts.size, N_JOINTS))
+        if self._spline is None:
+            return np.repeat(self.knots[:1], ts.size, axis=0), qd, qdd
+        tc = np.clip(ts, 0.0, self.duration_s)
+        i = np.clip(np.searchsorted(self._t, tc, side="right") - 1, 0, self._u.size - 1)
+        dt, u = tc - self._t[i], self._u[i]
+        sd = np.maximum(self._sd[i] + u * dt, 0.0)
+        s = np.clip(self._s[i] + self._sd[i] * dt + 0.5 * u * dt**2, 0.0, self._s[-1])
+        s[tc >= self.duration_s] = self._s[-1]
+        d1, d2 = self._spline(s, 1), self._spline(s, 2)
+        moving = (ts >= 0.0) & (ts <= self.duration_s)
+        qd[moving] = (d1 * sd[:, None])[moving]
+        qdd[moving] = (d2 * sd[:, None] ** 2 + d1 * u[:, None])[moving]
+        return self._spline(s), qd, qdd
+
+
+def retime(
+    path: np.ndarray,
+    config: TimingConfig | None = None,
+    is_segment_valid: Callable[[np.ndarray], bool] | None = None,
+) -> Trajectory:
+    """Time-optimal rest-to-rest time scaling of a joint-space polyline.
+
+    Args:
+        path: Joint waypoints (N, 6) (rad), N >= 2, e.g. a planner's collision-checked polyline.
+        config: Limits and numerical settings; defaults to :meth:`TimingConfig.ur5e`.
+        is_segment_valid: Optional check of the geometric path the trajectory follows. Called with
+            configurations (M, 6) (rad) sampled every ``config.check_step_rad`` of arc length; when it
+            returns False the straight segments are densified further and the check repeated.
+
+    Returns:
+        The trajectory, starting at ``path[0]`` and ending at ``path[-1]`` at rest.
+
+    Raises:
+        ConfigError: ``path`` is not a finite (N, 6) array with N >= 2.
+        TimingFailed: TOPP-RA found no parameterization, or ``is_segment_valid`` still rejects the
+            path after ``config.max_densify_rounds`` rounds.
+    """
+    cfg = config if config is not None else TimingConfig()
+    raw = _as_path(path)
+    raw.setflags(write=False)
+    pts = _dedupe(raw, cfg.min_separation_rad)
+    logger.debug("retime: %d waypoints, %d after de-duplication", len(raw), len(pts))
+    if len(pts) == 1:
+        if is_segment_valid is not None and not is_segment_valid(pts.copy()):
+            raise TimingFailed("is_segment_valid rejects the (motionless) path's only configuration")
+        e0, e1 = np.zeros(1), np.zeros(0)
+        return Trajectory(raw, pts, 0.0, 0.0, 0.0, 0.0, 0.0, 0, None, e0, e0, e0, e1)
+    for rnd in range(cfg.max_densify_rounds + 1):
+        knots = _densify(pts, cfg.max_segment_rad / 2**rnd)
+        ss = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(knots, axis=0), axis=1))))
+        spline = toppra.SplineInterpolator(ss, knots)  # not-a-knot; exactly straight on collinear knots
+        s_chk = np.linspace(0.0, ss[-1], max(2, math.ceil(ss[-1] / cfg.check_step_rad) + 1))
+        q_chk = spline(s_chk)
+        polyline = np.stack([np.interp(s_chk, ss, knots[:, j]) for j in range(N_JOINTS)], axis=1)
+        deviation = float(np.max(np.linalg.norm(q_chk - polyline, axis=1)))
+        logger.debug("round %d: %d knots, length %.3f rad, deviation %.4f rad", rnd, len(knots), ss[-1],
+                     deviation)
+        if is_segment_valid is None or is_segment_valid(q_chk):
+            break
+    else:
+        raise TimingFailed(
+            f"is_segment_valid still rejects the spline after {cfg.max_densify_rounds} densification rounds "
+            f"(segments <= {cfg.max_segment_rad / 2**cfg.max_densify_rounds:.4g} rad, "
+            f"deviation {deviation:.4g} rad)")
+    grid, sd, elapsed, v_ratio, a_ratio = _solve(spline, ss[-1], cfg)
+    x = sd**2
+    t = np.concatenate(([0.0], np.cumsum(2.0 * np.diff(grid) / (sd[:-1] + sd[1:]))))
+    if not np.isfinite(t[-1]):
+        raise TimingFailed(f"TOPP-RA stops mid-path (path speed 0 inside the path of {ss[-1]:.3f} rad)")
+    u = np.diff(x) / (2.0 * np.diff(grid))
+    knots.setflags(write=False)
+    logger.debug("retime: duration %.4f s, TOPP-RA %.1f ms, %d gridpoints, peak ratios v %.4f a %.4f",
+                 t[-1], elapsed * 1e3, grid.size, v_ratio, a_ratio)
+    return Trajectory(raw, knots, float(t[-1]), deviation, elapsed, v_ratio, a_ratio, rnd, spline, grid, t,
+                      sd, u)
+
+
+def _solve(
+    spline: toppra.SplineInterpolator, length: float, cfg: TimingConfig
+) -> tuple[np.ndarray, np.ndarray, float, float, float]:
+    """Run TOPP-RA, refining stages that exceed a limit between gridpoints.
+
+    Returns:
+        Gridpoints (n,) (rad), path speeds (n,) (rad/s), TOPP-RA wall time (s), and the peak
+        velocity and acceleration ratios to the (unshrunk) limits.
+    """
+    vlim = np.array(cfg.velocity_limits_rad_s)
+    alim = np.array(cfg.acceleration_limits_rad_s2)
+    shrink = 1.0 - cfg.limit_margin
+    constraints = [
+        tcon.JointVelocityConstraint(vlim * shrink),
+        tcon.JointAccelerationConstraint(alim * shrink, tcon.DiscretizationType.Interpolation),
+    ]
+    grid = np.linspace(0.0, length, max(50, math.ceil(length / cfg.grid_step_rad) + 1))
+    elapsed = 0.0
+    for rnd in range(cfg.max_refine_rounds + 1):
+        t0 = time.perf_counter()
+        solver = talgo.TOPPRA(constraints, spline, gridpoints=grid, solver_wrapper="seidel",
+                              parametrizer="ParametrizeConstAccel")
+        out = solver.compute_trajectory(0.0, 0.0)
+        elapsed += time.perf_counter() - t0
+        sd = solver.problem_data.sd_vec
+        if out is None or sd is None or not np.all(np.isfinite(sd)):
+            raise TimingFailed(
+                f"TOPP-RA found no time scaling ({solver.problem_data.return_code}) for a path of "
+                f"{length:.4g} rad on {grid.size} gridpoints")
+        sd = np.maximum(np.asarray(sd, dtype=float), 0.0)
+        v_ratio, a_ratio = _stage_ratios(spline, grid, sd, vlim, alim)
+        bad = np.maximum(v_ratio, a_ratio) > 1.0
+        logger.debug("TOPP-RA round %d: %d gridpoints, %d stages over a limit", rnd, grid.size, bad.sum())
+        if not bad.any():
+            break
+        if rnd == cfg.max_refine_rounds:
+            logger.warning("limits exceeded between gridpoints by up to %.2f %% after %d refinements",
+                           100 * (max(v_ratio.max(), a_ratio.max()) - 1), rnd)
+            break
+        bad[:-1] |= bad[1:].copy()  # split the offending stages and their predecessors in four
+        ds = np.diff(grid)[bad]
+        grid = np.sort(np.concatenate([grid, *(grid[:-1][bad] + f * ds for f in (0.25, 0.5, 0.75))]))
+    return grid, sd, elapsed, float(v_ratio.max()), float(a_ratio.max())
+
+
+def _stage_ratios(
+    spline: toppra.SplineInterpolator, grid: np.ndarray, sd: np.ndarray, vlim: np.ndarray, alim: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per stage (n-1,), the largest |qd_j|/vlim_j and |qdd_j|/alim_j at a few points inside it."""
+    ds = np.diff(grid)
+    x = sd**2
+    u = np.diff(x) / (2.0 * ds)
+    s = grid[:-1, None] + _CHECK_FRACTIONS * ds[:, None]  # (n-1, k)
+    xs = np.maximum(x[:-1, None] + 2.0 * u[:, None] * (s - grid[:-1, None]), 0.0)
+    shape = (*s.shape, N_JOINTS)
+    d1 = spline(s.ravel(), 1).reshape(shape)
+    d2 = spline(s.ravel(), 2).reshape(shape)
+    v = np.abs(d1) * np.sqrt(xs)[..., None] / vlim
+    a = np.abs(d2 * xs[..., None] + d1 * u[:, None, None]) / alim
+    return v.max(axis=(1, 2)), a.max(axis=(1, 2))
+
+
+def _as_path(path: np.ndarray) -> np.ndarray:
+    """Return ``path`` as a fresh float array (N, 6), or raise ConfigError."""
+    try:
+        arr = np.array(path, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError("path", type(path).__name__, "must be an (N, 6) array of joint positions (rad)") \
+            from None
+    if arr.ndim != 2 or arr.shape[1] != N_JOINTS or arr.shape[0] < 2:
+        raise ConfigError("path.shape", arr.shape, f"must be (N, {N_JOINTS}) with N >= 2 waypoints")
+    bad = np.flatnonzero(~np.isfinite(arr).all(axis=1))
+    if bad.size:
+        raise ConfigError(f"path[{bad[0]}]", tuple(arr[bad[0]].tolist()),
+                          "must be finite joint positions (rad)")
+    return arr
+
+
+def _dedupe(path: np.ndarray, tol: float) -> np.ndarray:
+    """Drop waypoints within ``tol`` (rad) of their predecessor, keeping both endpoints (K, 6)."""
+    keep = [path[0]]
+    for q in path[1:-1]:
+        if np.linalg.norm(q - keep[-1]) > tol:
+            keep.append(q)
+    while len(keep) > 1 and np.linalg.norm(path[-1] - keep[-1]) <= tol:
+        keep.pop()
+    if np.linalg.norm(path[-1] - keep[-1]) > tol:
+        keep.append(path[-1])
+    return np.array(keep)
+
+
+def _densify(pts: np.ndarray, max_len: float) -> np.ndarray:
+    """Split every segment of the polyline ``pts`` (K, 6) into equal pieces <= ``max_len`` (rad)."""
+    out = [pts[:1]]
+    for a, b in itertools.pairwise(pts):
+        n = max(1, math.ceil(np.linalg.norm(b - a) / max_len))
+        out.append(a + (np.arange(1, n + 1)[:, None] / n) * (b - a))
+    return np.concatenate(out)
+
+
+__all__ = [
+    "DESIGN_NOTE_VELOCITY_LIMITS_RAD_S",
+    "UR5E_ACCELERATION_LIMITS_RAD_S2",
+    "UR5E_VELOCITY_LIMITS_RAD_S",
+    "TimingConfig",
+    "Trajectory",
+    "retime",
+]

@@ -1,0 +1,382 @@
+"""Build the MuJoCo scene and the Pinocchio robot model from one MJCF description.
+
+The robot is written once, in ``assets/ur5e.xml`` with ``assets/gripper.xml`` attached to ``tool0``.
+:func:`robot_spec` composes the two with :class:`mujoco.MjSpec`; :func:`build` compiles that spec inside
+the scene for MuJoCo and hands the *same* spec, serialised to MJCF, to Pinocchio's MJCF parser. There is no
+second robot description to drift apart (``tests/test_model.py`` checks the two engines agree to 1e-9).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import tempfile
+import warnings
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+from pickplace.errors import ModelError
+from pickplace.world.config import SceneConfig
+
+log = logging.getLogger(__name__)
+
+ASSETS = Path(__file__).parent / "assets"
+
+#: The UR5e's joints, base to flange.
+ARM_JOINTS = (
+    "shoulder_pan_joint",
+    "shoulder_lift_joint",
+    "elbow_joint",
+    "wrist_1_joint",
+    "wrist_2_joint",
+    "wrist_3_joint",
+)
+#: The gripper's finger slides (the right one follows the left through an equality constraint).
+FINGER_JOINTS = ("left_finger_joint", "right_finger_joint")
+#: Published UR5e torque limits (N m), joints 1-6 (UR5e technical specification).
+TORQUE_LIMITS_NM = np.array([150.0, 150.0, 150.0, 28.0, 28.0, 28.0])
+
+_EMPTY_PREFIX_WARNING = "Attaching a spec with an empty prefix"
+
+
+@contextlib.contextmanager
+def quiet_attach() -> Iterator[None]:
+    """Silence MuJoCo's warning about attaching with an empty prefix.
+
+    We attach the gripper and the robot without name prefixes on purpose (the names in the XML files are
+    already unique and are the public names: ``tcp``, ``tool0``, ``left_pad``). MuJoCo warns about it
+    through its C warning hook (which would also write ``MUJOCO_LOG.TXT`` into the working directory) and
+    through Python's ``warnings``; both are scoped to this block.
+    """
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(lambda msg: None if _EMPTY_PREFIX_WARNING in msg else log.warning(msg))
+    try:
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message=_EMPTY_PREFIX_WARNING)
+            yield
+    finally:
+        mujoco.set_mju_user_warning(previous)
+
+
+def robot_spec() -> mujoco.MjSpec:
+    """The UR5e with the gripper mounted on ``tool0``: the one robot description (arm + gripper)."""
+    spec = mujoco.MjSpec.from_file(str(ASSETS / "ur5e.xml"))
+    gripper = mujoco.MjSpec.from_file(str(ASSETS / "gripper.xml"))
+    with quiet_attach():
+        spec.body("tool0").add_frame().attach_body(gripper.body("gripper_base"), "", "")
+    return spec
+
+
+def _quat_yaw(yaw: float) -> list[float]:
+    return [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
+
+
+#: Name of the mocap body (and geom) of the obstacle that fault injection makes appear.
+INTRUDER = "intruder"
+#: Where the intruder waits, far from everything (m).
+INTRUDER_PARKED_POS = (5.0, 5.0, 5.0)
+#: Half sizes of the intruder box (m): thin along x, 0.2 m across, 0.25 m tall.
+INTRUDER_HALF_SIZE_M = (0.02, 0.10, 0.125)
+
+
+def scene_spec(scene: SceneConfig) -> mujoco.MjSpec:
+    """The full scene for MuJoCo: world, robot, table, cube, goal marker and optional obstacle.
+
+    Args:
+        scene: What to build. Nothing in the XML files needs editing to vary it.
+
+    Returns:
+        An uncompiled spec. The robot is the first body tree under the world body.
+    """
+    spec = mujoco.MjSpec.from_file(str(ASSETS / "scene.xml"))
+    spec.option.timestep = scene.timestep_s
+    robot = robot_spec()
+    with quiet_attach():
+        spec.worldbody.add_frame().attach_body(robot.body("base"), "", "")
+
+    # Table: a 40 mm top whose upper face is at table_height_m, on four legs.
+    top_half = 0.02
+    sx, sy = (s / 2 for s in scene.table_size_xy_m)
+    cx, cy = scene.table_center_xy_m
+    table = spec.worldbody.add_body(name="table", pos=[cx, cy, scene.table_height_m - top_half])
+    table.add_geom(name="table_top", type=mujoco.mjtGeom.mjGEOM_BOX, size=[sx, sy, top_half],
+                   material="table", friction=[1.0, 0.005, 0.0001])
+    leg_half = (scene.table_height_m - 2 * top_half) / 2
+    for i, (lx, ly) in enumerate(((1, 1), (1, -1), (-1, 1), (-1, -1))):
+        table.add_geom(name=f"table_leg_{i}", type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[0.025, leg_half, 0],
+                       pos=[lx * (sx - 0.04), ly * (sy - 0.04), -top_half - leg_half], material="table")
+
+    # The cube: a free body. priority=1 makes its friction, condim and solver parameters the ones used for
+    # every contact it takes part in (pads, table), so SceneConfig.cube_friction is the contact friction.
+    h = scene.cube_size_m / 2
+    cube = spec.worldbody.add_body(name="cube", pos=scene.cube_start_pos_m.tolist(),
+                                   quat=_quat_yaw(scene.cube_yaw_rad))
+    cube.add_freejoint(name="cube_joint")
+    cube.add_geom(name="cube", type=mujoco.mjtGeom.mjGEOM_BOX, size=[h, h, h], mass=scene.cube_mass_kg,
+                  material="aluminium", condim=4, priority=1,
+                  friction=[scene.cube_friction, scene.cube_torsional_friction_m, 0.0001],
+                  solref=[0.004, 1.0], solimp=[0.95, 0.99, 0.001, 0.5, 2.0])
+    cube.add_site(name="cube_center", size=[0.003, 0, 0], rgba=[1, 0, 1, 1], group=4)
+
+    # The goal: a translucent marker (no contacts) with the cube's footprint at the goal yaw.
+    goal = spec.worldbody.add_body(name="goal", pos=[*scene.goal_xy_m, scene.table_height_m],
+                                   quat=_quat_yaw(scene.goal_yaw_rad))
+    goal.add_geom(name="goal_marker", type=mujoco.mjtGeom.mjGEOM_BOX, size=[h, h, 0.0005],
+                  contype=0, conaffinity=0, group=1, material="goal")
+    goal.add_site(name="goal", size=[0.003, 0, 0], rgba=[0, 1, 0, 1], group=4)
+
+    # An obstacle parked far away (a mocap body): fault injection moves it into the robot's path mid-episode.
+    intruder = spec.worldbody.add_body(name=INTRUDER, pos=list(INTRUDER_PARKED_POS), mocap=True)
+    intruder.add_geom(name=INTRUDER, type=mujoco.mjtGeom.mjGEOM_BOX, size=list(INTRUDER_HALF_SIZE_M),
+                      material="obstacle")
+
+    if scene.obstacle:
+        ox, oy = obstacle_xy(scene)
+        wall = spec.worldbody.add_body(name="obstacle", pos=[ox, oy, scene.table_height_m
+                                                             + scene.obstacle_height_m / 2])
+        wall.add_geom(name="obstacle", type=mujoco.mjtGeom.mjGEOM_BOX,
+                      size=[scene.obstacle_length_m / 2, scene.obstacle_thickness_m / 2,
+                            scene.obstacle_height_m / 2], material="obstacle")
+    return spec
+
+
+def scene_xml(scene: SceneConfig) -> str:
+    """The scene as one self-contained MJCF string (e.g. to open in MuJoCo's own viewer)."""
+    with quiet_attach():
+        return scene_spec(scene).to_xml()
+
+
+def obstacle_xy(scene: SceneConfig) -> tuple[float, float]:
+    """Centre (x, y) of the obstacle wall: midway between the cube's start and the goal, plus the offset (m)."""
+    a, b = np.asarray(scene.cube_start_xy_m), np.asarray(scene.goal_xy_m)
+    mid = (a + b) / 2 + np.asarray(scene.obstacle_offset_xy_m)
+    return float(mid[0]), float(mid[1])
+
+
+@dataclass(frozen=True)
+class Handles:
+    """Indices of the named elements the rest of the code needs, resolved once.
+
+    Attributes:
+        arm_qpos: qpos addresses of the six arm joints (6,).
+        arm_dof: dof addresses of the six arm joints (6,).
+        arm_actuators: actuator ids of the six arm motors (6,).
+        finger_qpos: qpos addresses of the two finger slides (2,).
+        finger_dof: dof addresses of the two finger slides (2,).
+        gripper_actuator: id of the gripper's position actuator.
+        tcp_site: id of the ``tcp`` site.
+        tool0_body: id of the ``tool0`` body.
+        cube_body: id of the ``cube`` body.
+        cube_geom: id of the ``cube`` geom.
+        cube_qpos: first qpos address of the cube's free joint (7 values: position, quaternion).
+        cube_dof: first dof address of the cube's free joint (6 values).
+        pad_geoms: ids of the left and right pad geoms (2,).
+        robot_bodies: ids of every body of the arm and the gripper.
+        gripper_bodies: ids of the gripper's bodies (base and fingers).
+    """
+
+    arm_qpos: np.ndarray
+    arm_dof: np.ndarray
+    arm_actuators: np.ndarray
+    finger_qpos: np.ndarray
+    finger_dof: np.ndarray
+    gripper_actuator: int
+    tcp_site: int
+    tool0_body: int
+    cube_body: int
+    cube_geom: int
+    cube_qpos: int
+    cube_dof: int
+    pad_geoms: np.ndarray
+    robot_bodies: frozenset[int]
+    gripper_bodies: frozenset[int]
+
+    @classmethod
+    def resolve(cls, m: mujoco.MjModel) -> Handles:
+        """Look every name up in ``m``; raise :class:`ModelError` listing valid names if one is missing."""
+
+        def find(kind: mujoco.mjtObj, name: str) -> int:
+            i = mujoco.mj_name2id(m, kind, name)
+            if i < 0:
+                raise ModelError(f"the model has no {kind.name[6:].lower()} named '{name}'")
+            return i
+
+        J, B, G, S, A = (mujoco.mjtObj.mjOBJ_JOINT, mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM,
+                         mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtObj.mjOBJ_ACTUATOR)
+        arm = [find(J, n) for n in ARM_JOINTS]
+        fingers = [find(J, n) for n in FINGER_JOINTS]
+        cube_joint = m.body_jntadr[find(B, "cube")]
+        base = find(B, "base")
+        gripper_base = find(B, "gripper_base")
+
+        def subtree(root: int) -> frozenset[int]:
+            out = {root}
+            for b in range(root + 1, m.nbody):
+                if m.body_parentid[b] in out:
+                    out.add(b)
+            return frozenset(out)
+
+        return cls(
+            arm_qpos=m.jnt_qposadr[arm].copy(),
+            arm_dof=m.jnt_dofadr[arm].copy(),
+            arm_actuators=np.array([find(A, n) for n in
+                                    ("shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3")]),
+            finger_qpos=m.jnt_qposadr[fingers].copy(),
+            finger_dof=m.jnt_dofadr[fingers].copy(),
+            gripper_actuator=find(A, "gripper"),
+            tcp_site=find(S, "tcp"),
+            tool0_body=find(B, "tool0"),
+            cube_body=find(B, "cube"),
+            cube_geom=find(G, "cube"),
+            cube_qpos=int(m.jnt_qposadr[cube_joint]),
+            cube_dof=int(m.jnt_dofadr[cube_joint]),
+            pad_geoms=np.array([find(G, "left_pad"), find(G, "right_pad")]),
+            robot_bodies=subtree(base),
+            gripper_bodies=subtree(gripper_base),
+        )
+
+
+@dataclass(frozen=True)
+class Robot:
+    """The scene compiled for MuJoCo and the robot for Pinocchio, from the same MJCF.
+
+    Attributes:
+        scene: The configuration the models were built from.
+        mj: The MuJoCo model of the whole scene.
+        pin: The Pinocchio model of the robot (arm + gripper: 6 arm joints then the 2 finger slides).
+        handles: Resolved MuJoCo element ids.
+        pin_tcp_frame: Pinocchio frame id of the ``tcp`` site.
+        pin_tool0_frame: Pinocchio frame id of the ``tool0`` body.
+        home_q: The arm's ``home`` keyframe (6,) (rad).
+        arm_lower: Lower joint limits (6,) (rad).
+        arm_upper: Upper joint limits (6,) (rad).
+        torque_limits_nm: Actuator torque limits (6,) (N m), read from the motors' ctrlrange.
+        robot_mjcf: The robot MJCF that both engines were built from.
+    """
+
+    scene: SceneConfig
+    mj: mujoco.MjModel
+    pin: pin.Model
+    handles: Handles
+    pin_tcp_frame: int
+    pin_tool0_frame: int
+    home_q: np.ndarray
+    arm_lower: np.ndarray
+    arm_upper: np.ndarray
+    torque_limits_nm: np.ndarray
+    robot_mjcf: str
+
+    def make_data(self) -> mujoco.MjData:
+        """A fresh MuJoCo data at the ``home`` keyframe (gripper open, cube at its start), forward-computed."""
+        d = mujoco.MjData(self.mj)
+        mujoco.mj_resetDataKeyframe(self.mj, d, 0)
+        mujoco.mj_forward(self.mj, d)
+        return d
+
+    def pin_q(self, q_arm: np.ndarray, finger_m: float = 0.0) -> np.ndarray:
+        """Pinocchio configuration (8,) from arm joints (6,) (rad) and a finger opening (m)."""
+        q = np.empty(self.pin.nq)
+        q[:6] = q_arm
+        q[6:] = finger_m
+        return q
+
+
+def build(scene: SceneConfig | None = None) -> Robot:
+    """Build both engines' models of ``scene`` (default scene if ``None``).
+
+    Raises:
+        ModelError: if the MJCF does not compile or Pinocchio builds a different tree than expected.
+    """
+    scene = scene or SceneConfig()
+    spec = scene_spec(scene)
+    try:
+        with quiet_attach():
+            m = spec.compile()
+            robot_xml = robot_spec().to_xml()
+    except ValueError as exc:
+        raise ModelError(f"the MJCF scene does not compile: {exc}") from exc
+    pmodel = _pinocchio_from_mjcf(robot_xml)
+    _place_site_frames(pmodel, m)
+    _copy_inertias(pmodel, m)
+    handles = Handles.resolve(m)
+
+    expected = ("universe", *ARM_JOINTS, *FINGER_JOINTS)
+    if tuple(pmodel.names) != expected:
+        raise ModelError(f"Pinocchio built joints {tuple(pmodel.names)}, expected {expected}")
+    home = m.key_qpos[0][handles.arm_qpos].copy()
+    ranges = m.jnt_range[[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in ARM_JOINTS]]
+    torque = np.abs(m.actuator_ctrlrange[handles.arm_actuators, 1]).copy()
+    return Robot(
+        scene=scene,
+        mj=m,
+        pin=pmodel,
+        handles=handles,
+        pin_tcp_frame=pmodel.getFrameId("tcp", pin.FrameType.OP_FRAME),
+        pin_tool0_frame=pmodel.getFrameId("tool0", pin.FrameType.BODY),
+        home_q=home,
+        arm_lower=ranges[:, 0].copy(),
+        arm_upper=ranges[:, 1].copy(),
+        torque_limits_nm=torque,
+        robot_mjcf=robot_xml,
+    )
+
+
+def _place_site_frames(pmodel: pin.Model, m: mujoco.MjModel) -> None:
+    """Give every site frame of the Pinocchio model its placement from the compiled MJCF.
+
+    Pinocchio 4.1's MJCF parser places a site relative to its parent *joint* instead of its body when the
+    body is welded below the joint (here ``tcp`` in ``gripper_base``, 0.0996 m below wrist 3): the tcp
+    came out 0.0996 m off. The site's pose in its body is taken from the same MJCF, compiled by MuJoCo,
+    so there is still one description; tests/test_model.py checks both engines' tcp agree to 1e-9.
+    """
+    for s in range(m.nsite):
+        name = m.site(s).name
+        if not pmodel.existFrame(name, pin.FrameType.OP_FRAME):
+            continue
+        body = m.body(m.site_bodyid[s]).name
+        body_frame = pmodel.frames[pmodel.getFrameId(body, pin.FrameType.BODY)]
+        quat = m.site_quat[s]  # MuJoCo (w, x, y, z)
+        local = pin.SE3(pin.Quaternion(quat[0], quat[1], quat[2], quat[3]).matrix(), m.site_pos[s].copy())
+        fid = pmodel.getFrameId(name, pin.FrameType.OP_FRAME)
+        frame = pmodel.frames[fid]
+        frame.placement = body_frame.placement * local
+        frame.parentJoint = body_frame.parentJoint
+        pmodel.frames[fid] = frame
+
+
+def _copy_inertias(pmodel: pin.Model, m: mujoco.MjModel) -> None:
+    """Set each Pinocchio joint's inertia from MuJoCo's compiled bodies, at full precision.
+
+    ``MjSpec.to_xml`` writes 6 significant digits, so the XML Pinocchio parses rounds UR's 7-digit inertias
+    (e.g. 0.3338809 -> 0.333881 kg m^2). Each Pinocchio joint carries its body plus every body welded to it
+    (``tool0`` and ``gripper_base`` ride on wrist 3); their inertias are summed in the joint's frame.
+    """
+    d = mujoco.MjData(m)
+    mujoco.mj_kinematics(m, d)
+    for j in range(1, pmodel.njoints):
+        jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, pmodel.names[j])
+        body = int(m.jnt_bodyid[jid])
+        X_world_body = pin.SE3(d.xmat[body].reshape(3, 3).copy(), d.xpos[body].copy())
+        total = pin.Inertia.Zero()
+        for b in np.flatnonzero(m.body_weldid == body):
+            X_world_inertial = pin.SE3(d.ximat[b].reshape(3, 3).copy(), d.xipos[b].copy())
+            local = pin.Inertia(float(m.body_mass[b]), np.zeros(3), np.diag(m.body_inertia[b]))
+            total += X_world_body.actInv(X_world_inertial).act(local)
+        pmodel.inertias[j] = total
+
+
+def _pinocchio_from_mjcf(xml: str) -> pin.Model:
+    """Parse an MJCF string with Pinocchio (its parser reads files only)."""
+    with tempfile.TemporaryDirectory(prefix="pickplace_") as tmp:
+        path = Path(tmp) / "robot.xml"
+        path.write_text(xml)
+        try:
+            return pin.buildModelFromMJCF(str(path))
+        except (RuntimeError, ValueError) as exc:
+            raise ModelError(f"Pinocchio could not parse the robot MJCF: {exc}") from exc

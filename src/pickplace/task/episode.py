@@ -1,0 +1,328 @@
+"""One pick-and-place episode: its configuration, the run, and the measured :class:`EpisodeResult`.
+
+``run_episode(config, seed)`` builds the scene, runs :class:`~pickplace.task.machine.PickPlaceMachine` in MuJoCo
+and returns every figure the machine measured, together with the config and the seed it ran with, so that
+any episode can be re-run alone and gives the same result (wall times aside).
+
+Configs can be written as TOML, one table per part::
+
+    [scene]
+    cube_start_xy_m = [0.35, 0.20]
+    cube_mass_kg = 0.3
+    obstacle = true
+
+    [planner]
+    time_budget_s = 0.5
+
+Tables: ``scene``, ``machine``, ``control``, ``planner``, ``timing``, ``ik``, ``faults``; keys are the
+dataclass fields.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import time
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pickplace.errors import ConfigError
+from pickplace.motion.control import ControlConfig, PhaseTracking
+from pickplace.motion.planning import PlannerConfig
+from pickplace.motion.timing import TimingConfig
+from pickplace.robot.ik import IKConfig
+from pickplace.robot.model import build
+from pickplace.task.faults import FaultConfig, apply_model_faults
+from pickplace.task.machine import MachineConfig, MachineOutcome, Phase, PickPlaceMachine, SegmentPlan
+from pickplace.task.telemetry import Telemetry, TelemetryRecorder
+from pickplace.world.config import SceneConfig, from_mapping
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class EpisodeConfig:
+    """Everything an episode depends on besides its seed.
+
+    Attributes:
+        scene: The world: cube, goal, table, obstacle.
+        machine: The state machine's tolerances and timeouts.
+        control: Controller gains and vertical-move profile.
+        planner: RRT* settings (the seed is replaced by the episode's).
+        timing: TOPP-RA limits.
+        ik: IK settings.
+        faults: Faults injected on purpose (none by default).
+    """
+
+    scene: SceneConfig = field(default_factory=SceneConfig)
+    machine: MachineConfig = field(default_factory=MachineConfig)
+    control: ControlConfig = field(default_factory=ControlConfig)
+    planner: PlannerConfig = field(default_factory=PlannerConfig)
+    timing: TimingConfig = field(default_factory=TimingConfig.ur5e)
+    ik: IKConfig = field(default_factory=IKConfig)
+    faults: FaultConfig = field(default_factory=FaultConfig)
+
+    def __post_init__(self) -> None:
+        for name, cls in _SECTIONS.items():
+            if not isinstance(getattr(self, name), cls):
+                raise ConfigError(name, getattr(self, name), f"must be a {cls.__name__}")
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> EpisodeConfig:
+        """Build from nested mappings ``{"scene": {...}, "planner": {...}, ...}`` (unknown keys are errors)."""
+        if not isinstance(data, dict):
+            raise ConfigError("config", data, "must be a table of tables")
+        unknown = sorted(set(data) - set(_SECTIONS))
+        if unknown:
+            raise ConfigError(unknown[0], data[unknown[0]], f"unknown table; allowed: {', '.join(_SECTIONS)}")
+        parts: dict[str, Any] = {}
+        for name, section_cls in _SECTIONS.items():
+            section = data.get(name, {})
+            if not isinstance(section, dict):
+                raise ConfigError(name, section, "must be a table of keys")
+            base = TimingConfig.ur5e() if section_cls is TimingConfig else None
+            parts[name] = from_mapping(section_cls, section, name, base)
+        return cls(**parts)
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> EpisodeConfig:
+        """Load a TOML file (see the module docstring); errors name the file, the key and the problem."""
+        return cls.from_dict(read_toml(path))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Nested plain data (lists for tuples), the inverse of :meth:`from_dict`."""
+        return {name: _plain(dataclasses.asdict(getattr(self, name))) for name in _SECTIONS}
+
+    def with_scene(self, **changes: Any) -> EpisodeConfig:
+        """A copy with some scene fields changed (validated)."""
+        return dataclasses.replace(self, scene=dataclasses.replace(self.scene, **changes))
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """The tables of a TOML file; :class:`ConfigError` naming the file if it cannot be read or parsed."""
+    p = Path(path)
+    try:
+        return tomllib.loads(p.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ConfigError("config", str(p), f"cannot be read: {exc.strerror or exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError("config", str(p), f"is not valid TOML: {exc}") from None
+
+
+_SECTIONS: dict[str, type] = {"scene": SceneConfig, "machine": MachineConfig, "control": ControlConfig,
+                              "planner": PlannerConfig, "timing": TimingConfig, "ik": IKConfig,
+                              "faults": FaultConfig}
+
+
+def _plain(value: Any) -> Any:
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return _plain(dataclasses.asdict(value))
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+@dataclass(frozen=True, eq=False)
+class EpisodeResult:
+    """What one episode did, measured. Lengths in m, angles in rad, times in s, forces in N.
+
+    Attributes:
+        success: The cube was placed at the goal and the arm returned home, every check passing, and the cube
+            still lay within ``machine.place_tolerance_xy_m`` of the goal ``machine.stable_after_release_s``
+            after the release.
+        failure_phase: Name of the phase that failed, or None.
+        failure_reason: What failed, with the numbers, or None.
+        failure_kind: The error behind the failure (e.g. ``"UnreachableTarget"``, ``"GraspFailed"``), or None.
+        seed: The episode's seed (the planner's random stream).
+        cycle_time_s: Simulated time from IDLE to DONE (or to the failure).
+        wall_time_s: Wall-clock time of the whole episode, model building included.
+        real_time_factor: Simulated seconds per wall-clock second (simulation incl. the hold after DONE).
+        phase_durations_s: Simulated time per phase (summed over repeats), in the order first run.
+        phase_timeline: ``(phase, start_s, duration_s, outcome)`` of every phase run, in order; outcome is
+            ``ok``, ``recovered`` (it failed, then a recovery followed) or ``failed``.
+        plan_time_s: Wall time of planning per segment (``approach``, ``transport``, ``return``).
+        retime_time_s: Wall time of TOPP-RA per segment.
+        waypoints_raw: Waypoints of the tree path per segment.
+        waypoints_shortcut: Waypoints after shortcutting per segment.
+        trajectory_duration_s: Duration of the timed trajectory per segment.
+        place_error_xy_m: Horizontal distance of the released cube (at rest) from the goal.
+        place_error_z_m: Height error of the released cube (positive: above its resting height).
+        place_error_yaw_rad: Yaw error of the released cube, modulo its 90 degree symmetry.
+        final_place_error_xy_m: Horizontal error ``machine.stable_after_release_s`` after the release.
+        ik_position_error_m: Largest tcp position residual of the IK solutions.
+        ik_orientation_error_rad: Largest tcp orientation residual of the IK solutions.
+        tracking_error_max_rad: Largest joint tracking error ``|q_ref - q|`` of every joint-space loop of every
+            phase: the planned trajectories and the holds (while the gripper closes or opens, after a push...).
+        tracking_error_rms_rad: RMS joint tracking error over the same loops.
+        tcp_tracking_error_max_m: Largest distance of the tcp from its reference in the Cartesian moves
+            (DESCEND, LIFT, DESCEND_PLACE, RETRACT and the back-offs of a recovery).
+        tcp_orientation_error_max_rad: Largest rotation of the tcp from its reference in those moves.
+        tracking_by_phase: The tracking errors of each phase that ran a control loop, by phase name.
+        grip_force_n: Sum of the pads' normal forces when the grip settled.
+        lift_grip_force_n: Mean sum of the pads' normal forces while the cube is lifted off the table.
+        lift_load_n: Weight carried by the pads while lifting (their vertical force minus m times the cube's
+            vertical acceleration, averaged); m g when the pads alone hold the cube.
+        force_closure: The settled grip passed the 6D force-closure test on the simulated contacts.
+        grasp_margin: Ferrari–Canny margin of that grip.
+        slip_max_m: Largest motion of the cube in the tcp frame while held.
+        torque_saturation_events: Control steps with a clipped torque.
+        unexpected_contacts: Geom pairs of every unexpected contact met (recovered from or not).
+        retries: Recoveries used.
+        recoveries: One line per recovery: the failure caught and what was done.
+        measured_cube_mass_kg: The cube's mass as the pads felt it while lifting (``lift_load_n / g``).
+        config: The full config the episode ran with.
+        telemetry: Per-step samples for plots and video (only when asked for; not serialized).
+    """
+
+    success: bool
+    failure_phase: str | None
+    failure_reason: str | None
+    failure_kind: str | None
+    seed: int
+    cycle_time_s: float
+    wall_time_s: float
+    real_time_factor: float
+    phase_durations_s: dict[str, float]
+    phase_timeline: tuple[tuple[str, float, float, str], ...]
+    plan_time_s: dict[str, float]
+    retime_time_s: dict[str, float]
+    waypoints_raw: dict[str, int]
+    waypoints_shortcut: dict[str, int]
+    trajectory_duration_s: dict[str, float]
+    place_error_xy_m: float
+    place_error_z_m: float
+    place_error_yaw_rad: float
+    final_place_error_xy_m: float
+    ik_position_error_m: float
+    ik_orientation_error_rad: float
+    tracking_error_max_rad: float
+    tracking_error_rms_rad: float
+    tcp_tracking_error_max_m: float
+    tcp_orientation_error_max_rad: float
+    tracking_by_phase: dict[str, PhaseTracking]
+    grip_force_n: float
+    lift_grip_force_n: float
+    lift_load_n: float
+    force_closure: bool
+    grasp_margin: float
+    slip_max_m: float
+    torque_saturation_events: int
+    unexpected_contacts: tuple[tuple[str, str], ...]
+    retries: int
+    recoveries: tuple[str, ...]
+    measured_cube_mass_kg: float
+    config: EpisodeConfig
+    telemetry: Telemetry | None = field(default=None, repr=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-ready data (NaN becomes None; the telemetry is left out)."""
+        out: dict[str, Any] = {}
+        for f in dataclasses.fields(self):
+            if f.name == "telemetry":
+                continue
+            value = getattr(self, f.name)
+            out[f.name] = value.to_dict() if f.name == "config" else _plain(value)
+        return out
+
+
+def run_episode(config: EpisodeConfig | None = None, seed: int = 0, *, record: bool = False,
+                frame_rate_hz: float = 30.0) -> EpisodeResult:
+    """Run one pick and place in simulation and measure it.
+
+    Args:
+        config: The episode's configuration (default: the default scene).
+        seed: Seed of the episode's random stream (the planner's).
+        record: Keep per-step telemetry (for plots and video) in the result.
+        frame_rate_hz: Video frames per simulated second kept when recording.
+
+    Returns:
+        The :class:`EpisodeResult`; a failed pick or place is reported in it, not raised.
+
+    Raises:
+        ConfigError: the configuration or the seed is invalid (nothing has run).
+    """
+    config = config if config is not None else EpisodeConfig()
+    if not isinstance(config, EpisodeConfig):
+        raise ConfigError("config", config, "must be an EpisodeConfig")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ConfigError("seed", seed, "must be an integer >= 0")
+    t0 = time.perf_counter()
+    robot = build(config.scene)
+    apply_model_faults(robot, config.faults)
+    data = robot.make_data()
+    config = dataclasses.replace(config, planner=dataclasses.replace(config.planner, seed=seed))  # as it runs
+    recorder = TelemetryRecorder(robot, frame_rate_hz, config.scene.goal_pos_m) if record else None
+    noise_rng = np.random.default_rng([seed, 1])  # the sensor-noise stream, independent of the planner's
+    machine = PickPlaceMachine(robot, data, config.machine, config.control, config.planner, config.timing, config.ik,
+                               recorder, config.faults, noise_rng)
+    t_sim0 = time.perf_counter()
+    out = machine.run()
+    wall = time.perf_counter() - t0
+    sim_wall = time.perf_counter() - t_sim0
+    result = _result(out, config, seed, wall, machine.monitor.t / sim_wall if sim_wall > 0 else math.nan,
+                     recorder.freeze() if recorder is not None else None)
+    log.info("episode seed %d: %s in %.3f s simulated, %.3f s wall", seed,
+             "success" if result.success else f"FAILED in {result.failure_phase}: {result.failure_reason}",
+             result.cycle_time_s, wall)
+    return result
+
+
+def _by_segment(segments: list[SegmentPlan], attr: str) -> dict[str, Any]:
+    return {s.name: getattr(s, attr) for s in segments}
+
+
+def _result(out: MachineOutcome, config: EpisodeConfig, seed: int, wall: float, rtf: float,
+            telemetry: Telemetry | None) -> EpisodeResult:
+    return EpisodeResult(
+        success=out.phase is Phase.DONE,
+        failure_phase=out.failure_phase.value if out.failure_phase is not None else None,
+        failure_reason=out.failure_reason,
+        failure_kind=out.failure_kind,
+        seed=seed,
+        cycle_time_s=out.cycle_time_s,
+        wall_time_s=wall,
+        real_time_factor=rtf,
+        phase_durations_s=dict(out.phase_durations_s),
+        phase_timeline=tuple(out.timeline),
+        plan_time_s=_by_segment(out.segments, "plan_time_s"),
+        retime_time_s=_by_segment(out.segments, "retime_time_s"),
+        waypoints_raw=_by_segment(out.segments, "waypoints_raw"),
+        waypoints_shortcut=_by_segment(out.segments, "waypoints_shortcut"),
+        trajectory_duration_s=_by_segment(out.segments, "duration_s"),
+        place_error_xy_m=out.place_error_xy_m,
+        place_error_z_m=out.place_error_z_m,
+        place_error_yaw_rad=out.place_error_yaw_rad,
+        final_place_error_xy_m=out.final_place_error_xy_m,
+        ik_position_error_m=out.ik_position_error_m,
+        ik_orientation_error_rad=out.ik_orientation_error_rad,
+        tracking_error_max_rad=out.tracking_total.joint_error_max_rad,
+        tracking_error_rms_rad=out.tracking_total.joint_error_rms_rad,
+        tcp_tracking_error_max_m=out.tracking_total.tcp_position_error_max_m,
+        tcp_orientation_error_max_rad=out.tracking_total.tcp_orientation_error_max_rad,
+        tracking_by_phase=dict(out.tracking),
+        grip_force_n=out.grip_force_n,
+        lift_grip_force_n=out.lift_grip_force_n,
+        lift_load_n=out.lift_load_n,
+        force_closure=out.force_closure,
+        grasp_margin=out.grasp_margin,
+        slip_max_m=out.slip_max_m,
+        torque_saturation_events=out.torque_saturation_events,
+        unexpected_contacts=tuple(out.unexpected_contacts),
+        retries=len(out.recoveries),  # each recovery (regrasp, replan, payload correction) is one retry
+        recoveries=tuple(out.recoveries),
+        measured_cube_mass_kg=out.lift_load_n / 9.81,
+        config=config,
+        telemetry=telemetry,
+    )
+
+
+__all__ = ["EpisodeConfig", "EpisodeResult", "read_toml", "run_episode"]

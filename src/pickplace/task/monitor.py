@@ -1,0 +1,139 @@
+"""The per-step monitor of an episode: unexpected contacts, slip in the grip, a resting cube that moves.
+
+Manipulation fails quietly, so these checks run after *every* simulation step of every phase (the control
+loops call the monitor as their hook) and raise the moment something is wrong, naming what they saw.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import mujoco
+import numpy as np
+
+from pickplace.errors import GraspFailed, PickPlaceError
+from pickplace.robot.model import Robot
+from pickplace.task.faults import FaultInjector
+from pickplace.task.telemetry import TelemetryRecorder
+
+
+class UnexpectedContact(PickPlaceError):
+    """A contact that the running phase does not allow (the geoms are named).
+
+    Attributes:
+        pairs: The offending geom pairs.
+    """
+
+    def __init__(self, pairs: list[tuple[str, str]], t_s: float) -> None:
+        self.pairs = pairs
+        names = ", ".join(f"{a} <-> {b}" for a, b in pairs)
+        super().__init__(f"unexpected contact at t = {t_s:.3f} s: {names}")
+
+
+class CubeMoved(PickPlaceError):
+    """The resting cube is no longer where it was observed (it was pushed, or knocked)."""
+
+
+# Contact classes of the simulation's geoms, for the per-step contact monitor.
+_ARM, _GRIPPER, _PAD, _CUBE, _TABLE, _ENV = range(6)
+
+
+class StepMonitor:
+    """The checks run after every simulation step, and the episode clock.
+
+    Called as the control loops' hook. It advances the episode time, records telemetry, and raises as soon
+    as something is wrong: :class:`UnexpectedContact`, :class:`~pickplace.errors.GraspFailed` (slip),
+    :class:`CubeMoved`, or whatever the trajectory predictor raises. The state machine switches the
+    checks on and off as the phases require (``allow_*``, ``holding``, ``watch_cube_at``, ``predictor``).
+
+    Args:
+        robot: The models.
+        recorder: Telemetry, or None.
+        slip_tolerance_m: Largest allowed motion of the held cube in the tcp frame (m).
+        injector: Timed faults to apply after each step, or None.
+    """
+
+    def __init__(self, robot: Robot, recorder: TelemetryRecorder | None, slip_tolerance_m: float,
+                 injector: FaultInjector | None = None) -> None:
+        m, h = robot.mj, robot.handles
+        self.robot = robot
+        self.recorder = recorder
+        self.injector = injector
+        self.predictor: Callable[[mujoco.MjData, float], None] | None = None  # set while a trajectory runs
+        self.predict_every = 50
+        self._steps = 0
+        self.dt = float(m.opt.timestep)
+        self.t = 0.0
+        self.phase = "IDLE"  # name of the running phase
+        self.slip_tolerance_m = slip_tolerance_m
+        table = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "table")
+        cls = np.full(m.ngeom, _ENV)
+        cls[np.isin(m.geom_bodyid, list(h.robot_bodies))] = _ARM
+        cls[np.isin(m.geom_bodyid, list(h.gripper_bodies))] = _GRIPPER
+        cls[h.pad_geoms] = _PAD
+        cls[m.geom_bodyid == table] = _TABLE
+        cls[h.cube_geom] = _CUBE
+        self.cls = cls
+        self.allow_hand_cube = False  # gripper/pads touching the cube
+        self.allow_cube_table = True
+        self.holding = False  # slip is checked
+        self.tolerate_contacts = False  # backing off a collision: contacts are expected until clear
+        self.watch_cube_at: np.ndarray | None = None  # where the resting cube was observed (m)
+        self.watch_tolerance_m = 0.005
+        self._p_tcp_cube0 = np.zeros(3)
+        self.slip_max_m = 0.0
+        self.slip_now_m = 0.0
+
+    def start_holding(self, d: mujoco.MjData) -> None:
+        """Take the cube's current position in the tcp frame as the reference for slip."""
+        self._p_tcp_cube0 = self._p_tcp_cube(d)
+        self.holding = True
+
+    def _p_tcp_cube(self, d: mujoco.MjData) -> np.ndarray:
+        h = self.robot.handles
+        R = d.site_xmat[h.tcp_site].reshape(3, 3)
+        return R.T @ (d.xpos[h.cube_body] - d.site_xpos[h.tcp_site])
+
+    def allowed(self, a: int, b: int) -> bool:
+        """Whether a contact between geom classes a and b is allowed now."""
+        lo, hi = min(a, b), max(a, b)
+        if hi == _CUBE and lo in (_GRIPPER, _PAD):
+            return self.allow_hand_cube
+        if (lo, hi) == (_CUBE, _TABLE):
+            return self.allow_cube_table
+        return False
+
+    def __call__(self, d: mujoco.MjData) -> None:
+        self.t += self.dt
+        if self.recorder is not None:
+            self.recorder.record(d, self.t, self.phase)
+        if d.ncon and not self.tolerate_contacts:
+            geoms = d.contact.geom[: d.ncon]
+            classes = self.cls[geoms]
+            bad = [(int(g[0]), int(g[1])) for g, c in zip(geoms, classes, strict=True)
+                   if not self.allowed(int(c[0]), int(c[1]))]
+            if bad:
+                m = self.robot.mj
+                pairs = sorted({tuple(sorted((m.geom(a).name or f"geom{a}", m.geom(b).name or f"geom{b}")))
+                                for a, b in bad})
+                raise UnexpectedContact(pairs, self.t)  # type: ignore[arg-type]
+        if self.holding:
+            slip = float(np.linalg.norm(self._p_tcp_cube(d) - self._p_tcp_cube0))
+            self.slip_now_m = slip
+            self.slip_max_m = max(self.slip_max_m, slip)
+            if slip > self.slip_tolerance_m:
+                raise GraspFailed(f"the cube slipped {slip * 1e3:.2f} mm in the grip at t = {self.t:.3f} s "
+                                  f"(tolerance {self.slip_tolerance_m * 1e3:.2f} mm)")
+        if self.watch_cube_at is not None:
+            moved = float(np.linalg.norm(d.xpos[self.robot.handles.cube_body] - self.watch_cube_at))
+            if moved > self.watch_tolerance_m:
+                self.watch_cube_at = None
+                raise CubeMoved(f"the cube moved {moved * 1e3:.1f} mm from where it was observed (t = {self.t:.3f} s)")
+        self._steps += 1
+        if self.predictor is not None and self._steps % self.predict_every == 0:
+            self.predictor(d, self.t)
+        if self.injector is not None:
+            self.injector.step(d, self.phase, self.t)
+
+
+__all__ = ["CubeMoved", "StepMonitor", "UnexpectedContact"]
