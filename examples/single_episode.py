@@ -10,7 +10,8 @@ from pickplace.task.episode import EpisodeConfig, run_episode
 
 def main() -> int:
     # A 300 g cube, turned by 30 degrees, carried over the wall to a goal 3 cm further out.
-    config = EpisodeConfig().with_scene(cube_mass_kg=0.3, cube_yaw_rad=0.52, goal_xy_m=(0.38, -0.20), obstacle=True)
+    config = EpisodeConfig().with_object(mass_kg=0.3).with_scene(start_yaw_rad=0.52, goal_xy_m=(0.38, -0.20),
+                                                                  obstacle=True)
     result = run_episode(config, seed=1)
     if not result.success:
         print(f"failed in {result.failure_phase}: {result.failure_reason}")

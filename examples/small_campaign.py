@@ -15,7 +15,7 @@ from pickplace.eval.campaign import CampaignConfig, RandomizationSpec, run_campa
 def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
     out = Path(args[0]) if args else Path(tempfile.mkdtemp(prefix="pickplace-campaign-"))
-    spec = RandomizationSpec(cube_mass_kg=(0.1, 0.4))  # the default ranges, heavier cubes
+    spec = RandomizationSpec(object_mass_scale=(0.67, 2.67))  # the default ranges, heavier cubes (0.1-0.4 kg)
     run = run_campaign(CampaignConfig(randomization=spec, trials=6, seed=7, workers=2), out)
     s = run.summary
     print(f"{s.successes}/{s.trials} succeeded; place error RMS {s.place_error_xy_rms_m * 1e3:.2f} mm; "

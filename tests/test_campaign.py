@@ -100,16 +100,16 @@ def test_samples_stay_in_their_ranges_and_disabling_one_keeps_the_others() -> No
             lo, hi = getattr(spec, name)
             assert lo <= value <= hi, name
         sc = t.config.scene
-        assert sc.cube_start_xy_m[0] == pytest.approx(base.cube_start_xy_m[0] + t.params["cube_dx_m"], abs=1e-15)
+        assert sc.start_xy_m[0] == pytest.approx(base.start_xy_m[0] + t.params["start_dx_m"], abs=1e-15)
         assert sc.goal_xy_m[1] == pytest.approx(base.goal_xy_m[1] + t.params["goal_dy_m"], abs=1e-15)
-        assert sc.cube_mass_kg == t.params["cube_mass_kg"]
-        assert sc.cube_yaw_rad == pytest.approx(t.params["cube_dyaw_rad"], abs=1e-15)
-    no_mass = CampaignConfig(randomization=RandomizationSpec(cube_mass_kg=None), trials=5, seed=SEED)
+        assert sc.object.mass_kg == pytest.approx(base.object.mass_kg * t.params["object_mass_scale"], rel=1e-12)
+        assert sc.start_yaw_rad == pytest.approx(t.params["start_dyaw_rad"], abs=1e-15)
+    no_mass = CampaignConfig(randomization=RandomizationSpec(object_mass_scale=None), trials=5, seed=SEED)
     for i in range(5):
         a, b = make_trial(campaign, i), make_trial(no_mass, i)
-        assert "cube_mass_kg" not in b.params
-        assert b.config.scene.cube_mass_kg == campaign.base.scene.cube_mass_kg
-        assert b.params["cube_friction"] == a.params["cube_friction"]
+        assert "object_mass_scale" not in b.params
+        assert b.config.scene.object.mass_kg == campaign.base.scene.object.mass_kg
+        assert b.params["object_friction"] == a.params["object_friction"]
     off = CampaignConfig(randomization=RandomizationSpec.off(), trials=2)
     assert make_trial(off, 1).config == off.base
     assert make_trial(off, 1).params == {}
@@ -118,14 +118,14 @@ def test_samples_stay_in_their_ranges_and_disabling_one_keeps_the_others() -> No
 @pytest.mark.parametrize(
     ("make", "field"),
     [
-        (lambda: RandomizationSpec(cube_mass_kg=(0.5, 0.1)), "randomization.cube_mass_kg"),
-        (lambda: RandomizationSpec(cube_size_m=(0.001, 0.05)), "randomization.cube_size_m[0]"),
-        (lambda: RandomizationSpec(cube_friction=(0.6,)), "randomization.cube_friction"),
+        (lambda: RandomizationSpec(object_mass_scale=(0.5, 0.1)), "randomization.object_mass_scale"),
+        (lambda: RandomizationSpec(object_size_scale=(0.01, 1.5)), "randomization.object_size_scale[0]"),
+        (lambda: RandomizationSpec(object_friction=(0.6,)), "randomization.object_friction"),
         (lambda: RandomizationSpec(goal_dx_m=(0.0, math.nan)), "randomization.goal_dx_m[1]"),
         (lambda: RandomizationSpec.from_dict({"cube_mas_kg": [0.1, 0.2]}), "randomization.cube_mas_kg"),
         (lambda: RandomizationSpec.from_dict({"cube_mass_kg": 0.2}), "randomization.cube_mass_kg"),
-        (lambda: CampaignConfig(randomization=RandomizationSpec(cube_dx_m=(-0.3, 0.3))),
-         "randomization.cube_dx_m/cube_dy_m/cube_size_m"),
+        (lambda: CampaignConfig(randomization=RandomizationSpec(start_dx_m=(-0.3, 0.3))),
+         "randomization.start_dx_m/start_dy_m/object_size_scale"),
         (lambda: CampaignConfig(trials=0), "campaign.trials"),
         (lambda: CampaignConfig(workers=0), "campaign.workers"),
         (lambda: CampaignConfig(timeout_s=-1.0), "campaign.timeout_s"),
@@ -144,14 +144,14 @@ def test_campaign_toml_with_a_randomization_table(tmp_path: Path) -> None:
     path.write_text("[scene]\ncube_mass_kg = 0.3\n\n[planner]\ntime_budget_s = 0.5\n\n"
                     "[randomization]\ncube_dx_m = [-0.02, 0.01]\ncube_mass_kg = false\n")
     base, spec = load_campaign_toml(path)
-    assert base.scene.cube_mass_kg == 0.3
+    assert base.scene.object.mass_kg == 0.3
     assert base.planner.time_budget_s == 0.5
-    assert spec.cube_dx_m == (-0.02, 0.01)
-    assert spec.cube_mass_kg is None
-    assert spec.cube_friction == RandomizationSpec().cube_friction
+    assert spec.start_dx_m == (-0.02, 0.01)
+    assert spec.object_mass_scale is None
+    assert spec.object_friction == RandomizationSpec().object_friction
     assert RandomizationSpec.from_dict(spec.to_dict()) == spec
     path.write_text("[randomization]\nfriction = [0.5, 1.0]\n")
-    with pytest.raises(ConfigError, match=r"randomization\.friction .*allowed: .*cube_friction"):
+    with pytest.raises(ConfigError, match=r"randomization\.friction .*allowed: .*object_friction"):
         load_campaign_toml(path)
 
 
@@ -497,14 +497,14 @@ def test_fault_ranges_are_sampled_into_the_trial_faults_without_moving_the_other
     """Randomized fault scales land in each trial's [faults]; turning them on changes no other parameter."""
     base_spec = RandomizationSpec(transport_push_n=(0.0, 40.0))
     faulted = RandomizationSpec(transport_push_n=(0.0, 40.0), pad_friction_scale=(0.3, 1.0),
-                                cube_mass_scale=(1.0, 2.0), joint_noise_rad=(0.0, 1e-4))
+                                true_mass_scale=(1.0, 2.0), joint_noise_rad=(0.0, 1e-4))
     a = base_spec.sample(np.random.default_rng(11))
     b = faulted.sample(np.random.default_rng(11))
     assert {k: b[k] for k in a} == a  # same scene and push draws
-    assert 0.3 <= b["pad_friction_scale"] <= 1.0 and 1.0 <= b["cube_mass_scale"] <= 2.0
+    assert 0.3 <= b["pad_friction_scale"] <= 1.0 and 1.0 <= b["true_mass_scale"] <= 2.0
     config = apply_params(EpisodeConfig(), b)
     assert config.faults.pad_friction_scale == b["pad_friction_scale"]
-    assert config.faults.cube_mass_scale == b["cube_mass_scale"]
+    assert config.faults.true_mass_scale == b["true_mass_scale"]
     assert config.faults.joint_noise_rad == b["joint_noise_rad"]
     assert np.linalg.norm(config.faults.transport_push_n) == pytest.approx(b["transport_push_n"])
     with pytest.raises(ConfigError, match=r"randomization\.pad_friction_scale"):

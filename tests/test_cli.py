@@ -41,21 +41,21 @@ def _check_hold(inspect_json: dict) -> None:
     hold = inspect_json["hold"]
     print(f"\ninspect hold: slip {hold['slip_m'] * 1e3:.4f} mm, grip {hold['grip_force_n']:.2f} N per pad, "
           f"peak {hold['peak_acceleration_m_s2']:.2f} m/s^2, safety factor {hold['safety_factor']}, trials "
-          + ", ".join(f"{t['cube_mass_kg']:.3g} kg {'held' if t['held'] else 'LOST'}" for t in hold["trials"]))
+          + ", ".join(f"{t['mass_kg']:.3g} kg {'held' if t['held'] else 'LOST'}" for t in hold["trials"]))
     assert hold["held"] is True
     assert hold["slip_m"] < 0.001
     assert hold["safety_factor"] >= 3
     assert hold["peak_acceleration_m_s2"] >= 3.0
-    assert hold["trials"][0]["cube_mass_kg"] == pytest.approx(0.150, abs=1e-12)
+    assert hold["trials"][0]["mass_kg"] == pytest.approx(0.150, abs=1e-12)
     # the safety factor at the lowest friction of the default randomization as well as at the scene's
-    by_mu = {m["cube_friction"]: m for m in hold["by_friction"]}
+    by_mu = {m["friction"]: m for m in hold["by_friction"]}
     assert set(by_mu) == {0.6, 1.0}
     assert by_mu[1.0]["safety_factor"] == hold["safety_factor"]
     assert by_mu[0.6]["safety_factor"] >= 8 and by_mu[1.0]["safety_factor"] >= 16
     for m in by_mu.values():
-        print(f"mu {m['cube_friction']}: safety factor {m['safety_factor']}, heaviest held "
+        print(f"mu {m['friction']}: safety factor {m['safety_factor']}, heaviest held "
               f"{m['heaviest_held_kg']:.2f} kg, Coulomb limit {m['coulomb_limit_kg']:.2f} kg")
-        lost = [t["cube_mass_kg"] for t in m["trials"] if not t["held"]]
+        lost = [t["mass_kg"] for t in m["trials"] if not t["held"]]
         assert m["heaviest_held_kg"] >= 0.6 * m["coulomb_limit_kg"]  # it holds what friction allows
         assert not lost or lost[0] >= 0.9 * m["coulomb_limit_kg"]  # and loses nothing friction could carry
 
@@ -64,8 +64,8 @@ def _check_gripper_and_model(inspect_json: dict) -> None:
     g = inspect_json["gripper"]
     assert "closed_inner_face_y_m" in g
     assert "open_width_m" in g
-    assert g["closed_inner_face_y_m"] < g["cube_half_width_m"]
-    assert g["open_width_m"] > 2 * g["cube_half_width_m"] + 0.010
+    assert g["closed_inner_face_y_m"] < g["object_half_width_m"]
+    assert g["open_width_m"] > 2 * g["object_half_width_m"] + 0.010
     mdl = inspect_json["model"]
     assert mdl["timestep_s"] == pytest.approx(0.001, abs=1e-15)
     assert [j["name"] for j in mdl["joints"]] == list(model.ARM_JOINTS)

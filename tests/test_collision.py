@@ -9,7 +9,7 @@ import pytest
 
 from pickplace.errors import CollisionError, ConfigError
 from pickplace.grasping.configurations import GraspConfigurations
-from pickplace.grasping.targets import T_tcp_cube, top_down
+from pickplace.grasping.targets import top_down
 from pickplace.motion.collision import CollisionChecker, CollisionPolicy
 from pickplace.robot import model
 from pickplace.robot.ik import solve_ik
@@ -98,9 +98,9 @@ def test_margin(robot: model.Robot) -> None:
 
 
 def test_held_cube_pushed_into_the_table(robot: model.Robot, configs: GraspConfigurations) -> None:
-    rel = T_tcp_cube(configs.targets, robot.scene.cube_yaw_rad)
-    policy = CollisionPolicy(margin_m=0.0, cube_held=True, allow_cube_table=False, finger_m=configs.held_finger_m)
-    checker = CollisionChecker(robot, policy, T_tcp_cube=rel)
+    rel = configs.targets.T_tcp_object
+    policy = CollisionPolicy(margin_m=0.0, object_held=True, allow_object_table=False, finger_m=configs.held_finger_m)
+    checker = CollisionChecker(robot, policy, T_tcp_object=rel)
     # at the place target the cube hangs 1 mm above the table: valid
     assert checker.colliding_pairs(configs.place.q) == []
     # lowered by 5 mm, the cube goes 4 mm into the table (the finger tips stay 6 mm above it)
@@ -114,8 +114,8 @@ def test_held_cube_pushed_into_the_table(robot: model.Robot, configs: GraspConfi
     with pytest.raises(CollisionError, match=r"lowered place is in collision: cube <-> table_top"):
         checker.require_valid(q, "lowered place")
     # the same contact is allowed while setting the cube down
-    placing = CollisionChecker(robot, CollisionPolicy(margin_m=0.0, cube_held=True, allow_cube_table=True,
-                                                      finger_m=configs.held_finger_m), T_tcp_cube=rel)
+    placing = CollisionChecker(robot, CollisionPolicy(margin_m=0.0, object_held=True, allow_object_table=True,
+                                                      finger_m=configs.held_finger_m), T_tcp_object=rel)
     assert placing.is_valid(q)
 
 

@@ -169,7 +169,7 @@ def test_tracks_home_to_pregrasp(robot: Robot, configs: GraspConfigurations) -> 
 
 def test_cube_in_hand_lift_and_carry(robot: Robot, configs: GraspConfigurations) -> None:
     """Close on the cube, lift it 0.15 m with Cartesian impedance and carry it to preplace with the payload."""
-    payload = Payload.cube(robot.scene, (0.0, 0.0, configs.targets.tcp_above_cube_m))
+    payload = Payload.held(robot.scene.object, configs.targets.T_tcp_object)
     cfg = ControlConfig()
     grasp_z = configs.targets.grasp.translation[2]
 
@@ -195,7 +195,7 @@ def test_cube_in_hand_lift_and_carry(robot: Robot, configs: GraspConfigurations)
     carry = retime(np.array([q_lifted, configs.preplace.q]), TimingConfig.ur5e(),
                    configs.carrying_checker(robot, margin_m=0.0).all_valid)
     rec = control.track(robot, d, carry, cfg, payload=payload)
-    cube_in_tcp = d.xpos[robot.handles.cube_body] - _tcp(robot, d)
+    cube_in_tcp = d.xpos[robot.handles.object_body] - _tcp(robot, d)
     d2, _ = grasp_and_lift()
     without = control.track(robot, d2, carry, cfg)
     print(f"carry to preplace ({carry.duration_s:.3f} s): max error {rec.max_error_rad * 1e3:.3f} mrad with payload "
@@ -262,7 +262,7 @@ def test_timeouts_and_tracking_bounds_raise(robot: Robot, configs: GraspConfigur
     z = configs.targets.pregrasp.translation[2] - 0.01
     with pytest.raises(ControlError, match="not settled") as info:
         control.move_vertical(robot, d, z, impossible)
-    assert info.value.phase == "move_vertical" and not info.value.record.reached
+    assert info.value.phase == "move_linear" and not info.value.record.reached
     rec = control.move_vertical(robot, _data_at(robot, configs.pregrasp.q), z, impossible, raise_on_timeout=False)
     assert not rec.reached and rec.duration_s == pytest.approx(rec.profile_duration_s + 0.05, abs=2e-3)
 

@@ -54,7 +54,7 @@ def _assert_meets_targets(r: EpisodeResult) -> None:
     assert r.unexpected_contacts == ()
     assert r.retries == 0 and r.recoveries == ()  # nothing went wrong that needed a recovery
     assert list(r.phase_durations_s) == ORDER  # every phase ran, in order
-    mg = r.config.scene.cube_mass_kg * 9.81
+    mg = r.config.scene.object.mass_kg * 9.81
     assert r.lift_load_n == pytest.approx(mg, rel=0.05)  # the pads carry the cube's weight at the top
     assert r.ik_position_error_m < 1e-4 and r.ik_orientation_error_rad < 1e-4
 
@@ -79,11 +79,11 @@ def test_telemetry_follows_the_cube(default_episode: EpisodeResult) -> None:
     tel = default_episode.telemetry
     assert tel is not None
     goal = default_episode.config.scene.goal_pos_m
-    assert np.linalg.norm(tel.cube_pos_m[-1, :2] - goal[:2]) <= STABLE_ERROR_MAX_M
+    assert np.linalg.norm(tel.object_pos_m[-1, :2] - goal[:2]) <= STABLE_ERROR_MAX_M
     spans = {name: (a, b) for name, a, b in tel.phase_spans()}
     assert set(spans) >= {"EXEC_APPROACH", "LIFT", "EXEC_TRANSPORT", "RELEASE"}
     in_lift = (tel.t_s >= spans["LIFT"][0]) & (tel.t_s < spans["LIFT"][1])
-    rise = tel.cube_pos_m[in_lift, 2].max() - tel.cube_pos_m[in_lift, 2].min()
+    rise = tel.object_pos_m[in_lift, 2].max() - tel.object_pos_m[in_lift, 2].min()
     assert rise == pytest.approx(0.15, abs=3e-3)
     assert tel.pad_force_n[in_lift].min() >= 2.0  # both pads press throughout the lift
     assert len(tel.frame_qpos) == pytest.approx(tel.t_s[-1] * 30, abs=2)
@@ -95,10 +95,10 @@ def test_reported_place_errors_are_the_cubes_measured_position(default_episode: 
     r, tel = default_episode, default_episode.telemetry
     assert tel is not None
     goal = r.config.scene.goal_pos_m
-    checked = tel.cube_pos_m[np.flatnonzero(tel.phase == tel.phase_names.index("RELEASE"))[-1]]
+    checked = tel.object_pos_m[np.flatnonzero(tel.phase == tel.phase_names.index("RELEASE"))[-1]]
     assert r.place_error_xy_m == pytest.approx(float(np.hypot(*(checked[:2] - goal[:2]))), abs=1e-9)
     assert r.place_error_z_m == pytest.approx(float(checked[2] - goal[2]), abs=1e-9)
-    final = tel.cube_pos_m[-1]
+    final = tel.object_pos_m[-1]
     assert r.final_place_error_xy_m == pytest.approx(float(np.hypot(*(final[:2] - goal[:2]))), abs=1e-9)
     release_start = next(a for n, a, _ in tel.phase_spans() if n == "RELEASE")
     assert tel.t_s[-1] == pytest.approx(release_start + r.config.machine.stable_after_release_s, abs=2e-3)
@@ -218,7 +218,7 @@ def test_cli_run_json_and_unreachable_goal() -> None:
                         capture_output=True, text=True, timeout=120)
     assert ok.returncode == 0, ok.stderr
     data = json.loads(ok.stdout)
-    assert data["success"] is True and data["config"]["scene"]["cube_mass_kg"] == 0.2
+    assert data["success"] is True and data["config"]["object"]["mass_kg"] == 0.2
     bad = subprocess.run([sys.executable, "-m", "pickplace", "run", "--goal", "1.5", "0"],
                          capture_output=True, text=True, timeout=120)
     assert bad.returncode == 1

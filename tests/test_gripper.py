@@ -46,13 +46,13 @@ def _print(label: str, r: HoldResult) -> None:
 
 
 def test_geometry_fits_the_cube(robot: model.Robot, geometry: GripperGeometry) -> None:
-    half = robot.scene.cube_size_m / 2
+    half = robot.scene.object.size_m[0] / 2
     print(f"\ngripper: open inner face {geometry.open_inner_face_y_m * 1e3:.3f} mm, closed "
           f"{geometry.closed_inner_face_y_m * 1e3:.3f} mm, open width {geometry.open_width_m * 1e3:.3f} mm, "
           f"tcp {geometry.tcp_offset_m * 1e3:.3f} mm from tool0")
     # the closed target lies past contact, so the actuator saturates on the cube
     assert geometry.closed_inner_face_y_m < half
-    assert geometry.open_width_m > robot.scene.cube_size_m + 0.010
+    assert geometry.open_width_m > robot.scene.object.size_m[0] + 0.010
     assert geometry.open_width_m == pytest.approx(2 * geometry.open_inner_face_y_m, abs=1e-12)
     # gripper.xml: 84 mm open, 4 mm closed, 40 mm travel, 20 mm pads, tcp 0.100 m from tool0
     assert geometry.open_width_m == pytest.approx(0.084, abs=1e-9)
@@ -61,7 +61,7 @@ def test_geometry_fits_the_cube(robot: model.Robot, geometry: GripperGeometry) -
     assert geometry.pad_half_height_m == pytest.approx(0.010, abs=1e-12)
     assert geometry.tcp_offset_m == pytest.approx(0.100, abs=1e-9)
     # the pads touch the cube at contact_travel_m
-    travel = geometry.contact_travel_m(robot.scene.cube_size_m)
+    travel = geometry.contact_travel_m(robot.scene.object.size_m[0])
     left, right, t = _pads_in_tcp(robot, robot.home_q, travel)
     assert left[1] - t == pytest.approx(half, abs=1e-9)
     assert right[1] + t == pytest.approx(-half, abs=1e-9)
@@ -100,12 +100,12 @@ def test_hold_default_scene(robot: model.Robot) -> None:
     assert r.grip_force_n == pytest.approx(per_pad, rel=0.10)
     assert r.min_grip_force_n == pytest.approx(per_pad, rel=0.10)
     assert r.peak_acceleration_m_s2 >= 3.0
-    assert r.cube_mass_kg == pytest.approx(0.150, abs=1e-12)
+    assert r.mass_kg == pytest.approx(0.150, abs=1e-12)
     assert r.load_n == pytest.approx(0.150 * (9.81 + r.peak_acceleration_m_s2), rel=1e-12)
 
 
 def test_hold_three_times_heavier_cube() -> None:
-    r = hold_test(SceneConfig(cube_mass_kg=0.45))
+    r = hold_test(SceneConfig.from_mapping(dict(cube_mass_kg=0.45)))
     _print("0.45 kg cube", r)
     assert r.held
     assert r.slip_m < SLIP_M
@@ -117,7 +117,7 @@ def test_hold_three_times_heavier_cube() -> None:
     [(0.6, 0.040), (1.0, 0.030), (1.0, 0.050), (0.6, 0.030), (0.6, 0.050)],
 )
 def test_hold_other_friction_and_sizes(friction: float, size: float) -> None:
-    r = hold_test(SceneConfig(cube_friction=friction, cube_size_m=size))
+    r = hold_test(SceneConfig.from_mapping(dict(cube_friction=friction, cube_size_m=size)))
     _print(f"mu {friction}, {size * 1e3:.0f} mm", r)
     assert r.held
     assert r.slip_m < SLIP_M
@@ -125,7 +125,7 @@ def test_hold_other_friction_and_sizes(friction: float, size: float) -> None:
 
 def test_hold_fails_when_it_should() -> None:
     """Control case: mu 0.05 and 1.5 kg. Friction can carry at most 0.05 * 2 * 20 N = 2 N < 14.7 N of weight."""
-    r = hold_test(SceneConfig(cube_friction=0.05, cube_mass_kg=1.5))
+    r = hold_test(SceneConfig.from_mapping(dict(cube_friction=0.05, cube_mass_kg=1.5)))
     _print("control: mu 0.05, 1.5 kg", r)
     assert not r.held
     assert r.slip_m > SLIP_M

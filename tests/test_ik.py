@@ -76,6 +76,8 @@ def test_four_targets_are_solved(robot: model.Robot, configs: GraspConfiguration
     print()
     _check_solved(robot, configs)
     assert [r.name for r in configs.results()] == ["pregrasp", "grasp", "preplace", "place"]
+    assert configs.lift is configs.pregrasp  # a top-down grasp lifts back to where it came from
+    assert configs.grasps_tried == 1
 
 
 def test_targets_geometry(robot: model.Robot, configs: GraspConfigurations) -> None:
@@ -83,13 +85,15 @@ def test_targets_geometry(robot: model.Robot, configs: GraspConfigurations) -> N
     tg, scene = configs.targets, robot.scene
     for _, T in tg.named():
         np.testing.assert_allclose(T.rotation[:, 2], [0.0, 0.0, -1.0], rtol=0, atol=1e-12)
-    np.testing.assert_allclose(tg.grasp.translation[:2], scene.cube_start_xy_m, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(tg.grasp.translation[:2], scene.start_xy_m, rtol=0, atol=1e-12)
     np.testing.assert_allclose(tg.place.translation[:2], scene.goal_xy_m, rtol=0, atol=1e-12)
     assert tg.pregrasp.translation[2] - tg.grasp.translation[2] == pytest.approx(0.150, abs=1e-12)
     assert tg.preplace.translation[2] - tg.place.translation[2] == pytest.approx(0.150, abs=1e-12)
+    np.testing.assert_allclose(tg.lift.translation, tg.pregrasp.translation, rtol=0, atol=1e-12)
     # for the default 40 mm cube the tcp is at its centre, the finger tips 5 mm above the table
-    assert tg.tcp_above_cube_m == pytest.approx(0.0, abs=1e-12)
-    assert tg.grasp.translation[2] == pytest.approx(scene.cube_start_z_m, abs=1e-12)
+    np.testing.assert_allclose(tg.T_object_tcp.translation, 0.0, rtol=0, atol=1e-12)
+    assert tg.grasp.translation[2] == pytest.approx(scene.rest_z_m, abs=1e-12)
+    assert tg.width_m == pytest.approx(0.040, abs=1e-12)
 
 
 def test_round_trip_from_home(robot: model.Robot) -> None:
@@ -130,7 +134,7 @@ def test_unreachable_target_raises(robot: model.Robot) -> None:
 
 @pytest.mark.parametrize("yaw", [-0.7, -0.3, 0.3, 0.7])
 def test_cube_yaw_is_followed(yaw: float) -> None:
-    robot = model.build(SceneConfig(cube_yaw_rad=yaw))
+    robot = model.build(SceneConfig.from_mapping(dict(cube_yaw_rad=yaw)))
     configs = solve_grasp_configurations(robot)
     R = configs.targets.grasp.rotation
     closing = R[:, 1]
@@ -139,17 +143,18 @@ def test_cube_yaw_is_followed(yaw: float) -> None:
     # angle between the closing axis and the cube's x axis, modulo pi/2: 0 means across two faces
     angle = math.atan2(np.cross(cube_R[:, 0], closing)[2], float(cube_R[:, 0] @ closing))
     off = abs(float(wrap_to_pi(4 * angle))) / 4
-    print(f"\nyaw {yaw:+.1f}: grasp yaw {configs.targets.grasp_yaw_rad:+.4f} rad, off-face {off:.1e} rad")
+    grasp_yaw = math.atan2(R[1, 0], R[0, 0])
+    print(f"\nyaw {yaw:+.1f}: grasp yaw {grasp_yaw:+.4f} rad, off-face {off:.1e} rad")
     assert off < 1e-9
     # the compiled cube has that yaw too
-    q = robot.mj.body_quat[robot.handles.cube_body]
+    q = robot.mj.body_quat[robot.handles.object_body]
     assert 2 * math.atan2(q[3], q[0]) == pytest.approx(yaw, abs=1e-12)
     # the wrist turns by less than 45 degrees from its home twist to do it
     T_home = _pin_tcp(robot, robot.home_q)
     twist_home = math.atan2(T_home.rotation[1, 0], T_home.rotation[0, 0]) - math.atan2(
         T_home.translation[1], T_home.translation[0])
-    cube_xy = robot.scene.cube_start_xy_m
-    twist = configs.targets.grasp_yaw_rad - math.atan2(cube_xy[1], cube_xy[0])
+    cube_xy = robot.scene.start_xy_m
+    twist = grasp_yaw - math.atan2(cube_xy[1], cube_xy[0])
     assert abs(float(wrap_to_pi(twist - twist_home))) <= math.pi / 4 + 1e-12
     _check_solved(robot, configs, scene_label=f"yaw {yaw:+.1f} ")
 

@@ -138,7 +138,7 @@ def test_scene_compiles_with_named_elements(robot: model.Robot) -> None:
     assert arm_joint_names == list(UR_JOINTS)
     for j in UR_JOINTS:
         assert m.jnt_type[_id(m, J, j)] == mujoco.mjtJoint.mjJNT_HINGE
-    for name in ("base", "tool0", "cube"):
+    for name in ("base", "tool0", "object"):
         _id(m, B, name)
     _id(m, S, "tcp")
     assert m.nkey >= 1
@@ -169,15 +169,15 @@ def test_cube_table_and_timestep(robot: model.Robot) -> None:
     m = robot.mj
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
-    cube_body = _id(m, mujoco.mjtObj.mjOBJ_BODY, "cube")
-    cube_geom = _id(m, mujoco.mjtObj.mjOBJ_GEOM, "cube")
-    assert m.geom_type[cube_geom] == mujoco.mjtGeom.mjGEOM_BOX
-    np.testing.assert_allclose(m.geom_size[cube_geom], [0.020] * 3, rtol=0, atol=1e-12)  # 40 mm edge
+    cube_body = _id(m, mujoco.mjtObj.mjOBJ_BODY, "object")
+    object_geoms = _id(m, mujoco.mjtObj.mjOBJ_GEOM, "cube")  # the object's geom is named after it
+    assert m.geom_type[object_geoms] == mujoco.mjtGeom.mjGEOM_BOX
+    np.testing.assert_allclose(m.geom_size[object_geoms], [0.020] * 3, rtol=0, atol=1e-12)  # 40 mm edge
     assert m.body_mass[cube_body] == pytest.approx(0.150, abs=1e-12)
     np.testing.assert_allclose(m.body_pos[cube_body], [0.35, 0.20, 0.335], rtol=0, atol=1e-12)
     np.testing.assert_allclose(d.xpos[cube_body], [0.35, 0.20, 0.335], rtol=0, atol=1e-12)
     # the keyframe puts the cube at its start too
-    cq = robot.handles.cube_qpos
+    cq = robot.handles.object_qpos
     np.testing.assert_allclose(m.key_qpos[0][cq:cq + 7], [0.35, 0.20, 0.335, 1, 0, 0, 0], rtol=0, atol=1e-12)
 
     top = _id(m, mujoco.mjtObj.mjOBJ_GEOM, "table_top")
@@ -186,7 +186,7 @@ def test_cube_table_and_timestep(robot: model.Robot) -> None:
     top_face_z = d.geom_xpos[top][2] + m.geom_size[top][2]
     assert top_face_z == pytest.approx(0.315, abs=1e-12)
     # the cube rests exactly on it
-    assert d.xpos[cube_body][2] - m.geom_size[cube_geom][2] == pytest.approx(top_face_z, abs=1e-12)
+    assert d.xpos[cube_body][2] - m.geom_size[object_geoms][2] == pytest.approx(top_face_z, abs=1e-12)
     assert m.opt.timestep == pytest.approx(0.001, abs=1e-15)
 
 
@@ -429,10 +429,10 @@ def test_tcp_jacobian_matches_mujoco_and_finite_differences(robot: model.Robot) 
 
 
 def test_scene_config_reaches_the_compiled_model() -> None:
-    scene = SceneConfig(cube_size_m=0.03, cube_mass_kg=0.3, cube_friction=0.7, cube_start_xy_m=(0.4, 0.1),
-                        cube_yaw_rad=0.3)
+    scene = SceneConfig.from_mapping(dict(cube_size_m=0.03, cube_mass_kg=0.3, cube_friction=0.7,
+                                          cube_start_xy_m=(0.4, 0.1), cube_yaw_rad=0.3))
     m = model.build(scene).mj
-    b = _id(m, mujoco.mjtObj.mjOBJ_BODY, "cube")
+    b = _id(m, mujoco.mjtObj.mjOBJ_BODY, "object")
     g = _id(m, mujoco.mjtObj.mjOBJ_GEOM, "cube")
     np.testing.assert_allclose(m.geom_size[g], [0.015] * 3, rtol=0, atol=1e-12)
     assert m.body_mass[b] == pytest.approx(0.3, abs=1e-12)

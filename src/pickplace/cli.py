@@ -35,10 +35,9 @@ EXIT_USAGE = 2
 
 
 def _scene_from_args(args: argparse.Namespace) -> SceneConfig:
-    kwargs: dict[str, object] = {}
-    if getattr(args, "obstacle", False):
-        kwargs["obstacle"] = True
-    return SceneConfig(**kwargs)  # type: ignore[arg-type]
+    """The scene of ``pickplace inspect``: the default one, with ``--obstacle`` and ``--object``."""
+    obj = {"library": args.object} if getattr(args, "object", None) else None
+    return SceneConfig.from_mapping({"obstacle": True} if getattr(args, "obstacle", False) else {}, object_data=obj)
 
 
 # --------------------------------------------------------------------------- #
@@ -68,9 +67,10 @@ def inspect_data(scene: SceneConfig) -> dict[str, object]:
     configs = solve_grasp_configurations(robot)
     margin = hold_margin(scene)
     nominal = margin.nominal
-    lowest = RandomizationSpec().cube_friction[0]  # the lowest friction of the default randomization
-    margins = [margin] if lowest == scene.cube_friction else [
-        hold_margin(dataclasses.replace(scene, cube_friction=lowest)), margin]
+    lowest = RandomizationSpec().object_friction[0]  # the lowest friction of the default randomization
+    margins = [margin] if lowest == scene.object.friction else [
+        hold_margin(scene.with_object(friction=lowest)), margin]
+    half = configs.targets.width_m / 2
     return {
         "version": __version__,
         "model": {
@@ -81,10 +81,10 @@ def inspect_data(scene: SceneConfig) -> dict[str, object]:
         "gripper": {
             "open_inner_face_y_m": geom.open_inner_face_y_m,
             "closed_inner_face_y_m": geom.closed_inner_face_y_m,
-            "cube_half_width_m": scene.cube_size_m / 2,
+            "object_half_width_m": half,
             "open_width_m": geom.open_width_m,
             "tcp_offset_m": geom.tcp_offset_m,
-            "closed_target_past_contact_m": scene.cube_size_m / 2 - geom.closed_inner_face_y_m,
+            "closed_target_past_contact_m": half - geom.closed_inner_face_y_m,
         },
         "ik": [
             {"name": r.name, "position_error_m": r.position_error_m,
@@ -93,7 +93,8 @@ def inspect_data(scene: SceneConfig) -> dict[str, object]:
             for r in configs.results()
         ],
         "hold": {
-            "cube_mass_kg": nominal.cube_mass_kg,
+            "object": scene.object.name,
+            "mass_kg": nominal.mass_kg,
             "held": nominal.held,
             "slip_m": nominal.slip_m,
             "slip_rad": nominal.slip_rad,
@@ -101,12 +102,12 @@ def inspect_data(scene: SceneConfig) -> dict[str, object]:
             "min_grip_force_n": nominal.min_grip_force_n,
             "peak_acceleration_m_s2": nominal.peak_acceleration_m_s2,
             "safety_factor": margin.safety_factor,
-            "trials": [{"cube_mass_kg": r.cube_mass_kg, "held": r.held, "slip_m": r.slip_m,
+            "trials": [{"mass_kg": r.mass_kg, "held": r.held, "slip_m": r.slip_m,
                         "grip_force_n": r.grip_force_n} for r in margin.results],
             "by_friction": [
-                {"cube_friction": m.cube_friction, "safety_factor": m.safety_factor,
-                 "heaviest_held_kg": m.safety_factor * scene.cube_mass_kg, "coulomb_limit_kg": m.coulomb_limit_kg,
-                 "trials": [{"cube_mass_kg": r.cube_mass_kg, "held": r.held, "slip_m": r.slip_m}
+                {"friction": m.friction, "safety_factor": m.safety_factor,
+                 "heaviest_held_kg": m.safety_factor * scene.object.mass_kg, "coulomb_limit_kg": m.coulomb_limit_kg,
+                 "trials": [{"mass_kg": r.mass_kg, "held": r.held, "slip_m": r.slip_m}
                             for r in m.results]}
                 for m in margins
             ],
@@ -142,9 +143,9 @@ def _cmd_inspect(args: argparse.Namespace, console: Console) -> int:
     g = data["gripper"]
     console.print(
         f"gripper: pad inner face open ±{g['open_inner_face_y_m'] * 1e3:.1f} mm, closed target "
-        f"±{g['closed_inner_face_y_m'] * 1e3:.1f} mm, cube half-width {g['cube_half_width_m'] * 1e3:.1f} mm "
-        f"(the closed target lies {g['cube_half_width_m'] * 1e3 - g['closed_inner_face_y_m'] * 1e3:.1f} mm "
-        f"inside the cube), open width {g['open_width_m'] * 1e3:.1f} mm, tcp {g['tcp_offset_m'] * 1e3:.1f} mm "
+        f"±{g['closed_inner_face_y_m'] * 1e3:.1f} mm, object half-width {g['object_half_width_m'] * 1e3:.1f} mm "
+        f"(the closed target lies {g['object_half_width_m'] * 1e3 - g['closed_inner_face_y_m'] * 1e3:.1f} mm "
+        f"inside the object), open width {g['open_width_m'] * 1e3:.1f} mm, tcp {g['tcp_offset_m'] * 1e3:.1f} mm "
         "from tool0"
     )
     t = Table(title="IK (DLS) for the four tcp targets")
@@ -156,20 +157,20 @@ def _cmd_inspect(args: argparse.Namespace, console: Console) -> int:
     console.print(t)
     h = data["hold"]
     t = Table(title="Hold test: close, lift 0.15 m, carry 0.40 m sideways")
-    for col in ("cube mass (kg)", "held", "slip (mm)", "grip force / pad (N)"):
+    for col in ("mass (kg)", "held", "slip (mm)", "grip force / pad (N)"):
         t.add_column(col, justify="right")
     for r in h["trials"]:
-        t.add_row(f"{r['cube_mass_kg']:.3f}", "yes" if r["held"] else "NO", f"{r['slip_m'] * 1e3:.3f}",
+        t.add_row(f"{r['mass_kg']:.3f}", "yes" if r["held"] else "NO", f"{r['slip_m'] * 1e3:.3f}",
                   f"{r['grip_force_n']:.1f}")
     console.print(t)
     console.print(
-        f"nominal cube: slip {h['slip_m'] * 1e3:.3f} mm, grip force {h['grip_force_n']:.1f} N per pad, "
+        f"nominal {h['object']}: slip {h['slip_m'] * 1e3:.3f} mm, grip force {h['grip_force_n']:.1f} N per pad, "
         f"peak acceleration {h['peak_acceleration_m_s2']:.2f} m/s²"
     )
     for m in h["by_friction"]:
         console.print(
-            f"friction μ {m['cube_friction']:g}: safety factor ≥ {m['safety_factor']:g} (heaviest cube held "
-            f"{m['heaviest_held_kg']:.2f} kg / cube mass; Coulomb limit 2μF/(g + a) = {m['coulomb_limit_kg']:.2f} "
+            f"friction μ {m['friction']:g}: safety factor ≥ {m['safety_factor']:g} (heaviest held "
+            f"{m['heaviest_held_kg']:.2f} kg / its mass; Coulomb limit 2μF/(g + a) = {m['coulomb_limit_kg']:.2f} "
             "kg)", highlight=False)
     return 0
 
@@ -197,31 +198,38 @@ def episode_config_from_args(args: argparse.Namespace, base: EpisodeConfig | Non
     config = base
     if args.fault:
         config = dataclasses.replace(config, faults=_faults_from_args(args.fault, config.faults))
-    changes: dict[str, object] = {}
-    if args.cube_start is not None:
-        changes["cube_start_xy_m"] = tuple(args.cube_start)
-    if args.cube_yaw is not None:
-        changes["cube_yaw_rad"] = args.cube_yaw
-    if args.goal is not None:
-        changes["goal_xy_m"] = tuple(args.goal)
-    if args.goal_yaw is not None:
-        changes["goal_yaw_rad"] = args.goal_yaw
-    if args.cube_mass is not None:
-        changes["cube_mass_kg"] = args.cube_mass
-    if args.cube_size is not None:
-        changes["cube_size_m"] = args.cube_size
-    if args.friction is not None:
-        changes["cube_friction"] = args.friction
+    scene: dict[str, object] = {}
+    obj: dict[str, object] = {}
+    if args.object is not None:
+        obj["library"] = args.object
+    if args.object_mesh is not None:
+        if args.object_mass is None:
+            raise CliError("--object-mesh needs --object-mass KG (the mass of the object)")
+        stem = "".join(c if c.isalnum() else "_" for c in Path(args.object_mesh).stem).strip("_") or "mesh"
+        obj.update(name=stem if stem[0].isalpha() else f"mesh_{stem}", kind="mesh", mesh_path=args.object_mesh)
+    if args.object_mass is not None:
+        obj["mass_kg"] = args.object_mass
+    for flag, key in (("start", "start_xy_m"), ("cube_start", "cube_start_xy_m"), ("goal", "goal_xy_m")):
+        if getattr(args, flag) is not None:
+            scene[key] = tuple(getattr(args, flag))
+    for flag, key in (("start_yaw", "start_yaw_rad"), ("cube_yaw", "cube_yaw_rad"), ("goal_yaw", "goal_yaw_rad"),
+                      ("cube_mass", "cube_mass_kg"), ("cube_size", "cube_size_m"), ("friction", "cube_friction")):
+        if getattr(args, flag) is not None:
+            scene[key] = getattr(args, flag)
     if args.obstacle:
-        changes["obstacle"] = True
-    return config.with_scene(**changes) if changes else config
+        scene["obstacle"] = True
+    if not scene and not obj:
+        return config
+    from pickplace.world.config import SceneConfig
+
+    return dataclasses.replace(config, scene=SceneConfig.from_mapping(scene, config.scene, obj or None))
 
 
 def _faults_from_args(items: list[str], base: FaultConfig) -> FaultConfig:
     """``--fault KEY=VALUE`` options (VALUE in TOML syntax: ``0.5``, ``true``, ``[0, 0, -40]``) over ``base``."""
     import tomllib
 
-    from pickplace.task.faults import FaultConfig
+    from pickplace.task.faults import LEGACY_FAULT_KEYS, FaultConfig
     from pickplace.world.config import from_mapping
 
     values: dict[str, object] = {}
@@ -234,7 +242,7 @@ def _faults_from_args(items: list[str], base: FaultConfig) -> FaultConfig:
             values[key] = tomllib.loads(f"v = {raw.strip()}")["v"]
         except tomllib.TOMLDecodeError:
             raise ConfigError(f"faults.{key}", raw, "must be a number, true/false or a list like [0, 0, -40]") from None
-    return from_mapping(FaultConfig, values, "faults", base)
+    return from_mapping(FaultConfig, values, "faults", base, LEGACY_FAULT_KEYS)
 
 
 def _mm(value: float | None) -> str:
@@ -242,7 +250,7 @@ def _mm(value: float | None) -> str:
 
 
 #: The conditions every figure of ``pickplace run`` holds under (the only robot profile so far).
-IDEAL_CONDITIONS = ("Ideal robot: the cube's pose is read from the simulator (exact, no delay), the controller's "
+IDEAL_CONDITIONS = ("Ideal robot: the object's pose is read from the simulator (exact, no delay), the controller's "
                     "dynamics model is the simulated arm's own, control runs at the 1 kHz physics rate without "
                     "delay. Tracking errors: every control loop of every phase; --json has them per phase.")
 
@@ -270,7 +278,7 @@ def print_episode(result: EpisodeResult, console: Console) -> None:
     t.add_column("design note", justify="right")
     t.add_column("pickplace", justify="right")
     sc = result.config.scene
-    mg = sc.cube_mass_kg * 9.81
+    mg = sc.object.mass_kg * 9.81
     t.add_row("success", "50/50 picks", "[green]yes[/]" if result.success else "[red]no[/]")
     t.add_row("place error xy (at rest)", DESIGN_NOTE["place_error"], _mm(result.place_error_xy_m))
     t.add_row("place error xy 1 s after release", "—", _mm(result.final_place_error_xy_m))
@@ -374,17 +382,22 @@ class CliError(PickPlaceError):
 def add_episode_options(p: argparse.ArgumentParser) -> None:
     """The options that define an episode's config (shared by ``run`` and ``eval``)."""
     p.add_argument("--config", metavar="FILE.toml", help="episode config ([scene], [planner], ... tables)")
-    p.add_argument("--cube-start", nargs=2, type=float, metavar=("X", "Y"), help="cube start (m)")
-    p.add_argument("--cube-yaw", type=float, metavar="RAD", help="cube yaw (rad)")
-    p.add_argument("--goal", nargs=2, type=float, metavar=("X", "Y"), help="goal of the cube's centre (m)")
-    p.add_argument("--goal-yaw", type=float, metavar="RAD", help="cube yaw at the goal (rad)")
-    p.add_argument("--cube-mass", type=float, metavar="KG", help="cube mass (kg)")
-    p.add_argument("--cube-size", type=float, metavar="M", help="cube edge length (m)")
-    p.add_argument("--friction", type=float, metavar="MU", help="cube friction coefficient")
+    p.add_argument("--object", metavar="NAME", help="a library object (see `pickplace objects`); default: the cube")
+    p.add_argument("--object-mesh", metavar="FILE", help="your own object: an OBJ or STL file (m), watertight")
+    p.add_argument("--object-mass", type=float, metavar="KG", help="the object's mass (kg)")
+    p.add_argument("--start", nargs=2, type=float, metavar=("X", "Y"), help="where the object starts (m)")
+    p.add_argument("--start-yaw", type=float, metavar="RAD", help="the object's yaw at the start (rad)")
+    p.add_argument("--goal", nargs=2, type=float, metavar=("X", "Y"), help="where the object goes (m)")
+    p.add_argument("--goal-yaw", type=float, metavar="RAD", help="the object's yaw at the goal (rad)")
+    p.add_argument("--friction", type=float, metavar="MU", help="the object's friction coefficient")
+    p.add_argument("--cube-start", nargs=2, type=float, metavar=("X", "Y"), help="same as --start")
+    p.add_argument("--cube-yaw", type=float, metavar="RAD", help="same as --start-yaw")
+    p.add_argument("--cube-mass", type=float, metavar="KG", help="same as --object-mass")
+    p.add_argument("--cube-size", type=float, metavar="M", help="the cube's edge length (m) (a box object only)")
     p.add_argument("--obstacle", action="store_true", help="put a wall between start and goal")
     p.add_argument("--fault", action="append", metavar="KEY=VALUE", default=[],
                    help="inject a fault (repeatable), e.g. pad_friction_scale=0.5, 'transport_push_n=[0,0,-40]', "
-                        "transport_push_s=0.05, intruder=true, cube_mass_scale=3, joint_noise_rad=1e-4")
+                        "transport_push_s=0.05, intruder=true, true_mass_scale=3, joint_noise_rad=1e-4")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -397,8 +410,8 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``pickplace``."""
-    parser = _Parser(prog="pickplace", description="A simulated UR5e picks a cube at A and places it at B, in closed "
-                     "loop, and measures every step: one episode (run), campaigns (eval, report), the model and "
+    parser = _Parser(prog="pickplace", description="A simulated UR5e picks an object at A and places it at B, in "
+                     "closed loop, and measures every step: one episode (run), campaigns (eval, report), the model and "
                      "its IK (inspect), benchmarks (bench).")
     parser.add_argument("--version", action="version", version=f"pickplace {__version__}")
     parser.add_argument("-v", "--verbose", action="count", default=0, help="log more (-v info, -vv debug)")
@@ -417,6 +430,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--export-xml", metavar="PATH", help="write the compiled scene MJCF to PATH")
     p.add_argument("--obstacle", action="store_true", help="put the wall between start and goal")
+    p.add_argument("--object", metavar="NAME", help="a library object (see `pickplace objects`); default: the cube")
     p.set_defaults(func=_cmd_inspect)
 
     p = sub.add_parser("bench", help="benchmarks: planning (vs OMPL), control (vs bare mj_step), campaign (scaling)")

@@ -16,7 +16,7 @@ class ConfigError(PickPlaceError, ValueError):
     """A configuration value is invalid.
 
     The message names the field, the value and what is allowed, e.g.
-    ``scene.cube_mass_kg = -1.0 is invalid: must be > 0 kg``.
+    ``scene.object.mass_kg = -1.0 is invalid: must be > 0 kg``.
 
     Attributes:
         field: Dotted name of the offending field.

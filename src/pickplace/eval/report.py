@@ -1,7 +1,7 @@
 """Episode video and plots from a :class:`~pickplace.task.telemetry.Telemetry`.
 
 :func:`render_video` replays the recorded ``qpos`` frames offscreen through MuJoCo's renderer and writes an
-MP4 (H.264) or a GIF; :func:`save_plots` writes PNG plots of joint tracking, tcp and cube heights, pad forces
+MP4 (H.264) or a GIF; :func:`save_plots` writes PNG plots of joint tracking, tcp and object heights, pad forces
 and the phase timeline. Both need the ``video`` extra (``pip install 'pickplace[video]'``: imageio,
 imageio-ffmpeg, matplotlib); those packages are imported inside the functions, so ``import pickplace.eval.report``
 works without them.
@@ -370,12 +370,12 @@ def _plot_tcp_height(telemetry: Telemetry, path: Path, colors: dict[str, tuple[f
     ax = fig.subplots()
     _shade_phases(ax, telemetry, colors)
     ax.plot(telemetry.t_s, telemetry.tcp_pos_m[:, 2], label="tcp z", color="C0")
-    ax.plot(telemetry.t_s, telemetry.cube_pos_m[:, 2], label="cube centre z", color="C3")
+    ax.plot(telemetry.t_s, telemetry.object_pos_m[:, 2], label="object origin z", color="C3")
     if telemetry.goal_pos_m.size == 3:
         ax.axhline(float(telemetry.goal_pos_m[2]), color="C2", linestyle=":", label="goal centre z")
     ax.set_xlabel("time (s)")
     ax.set_ylabel("height above the floor (m)")
-    ax.set_title("tcp and cube height")
+    ax.set_title("tcp and object height")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8, loc="lower right")
     fig.savefig(path, dpi=110)
@@ -392,7 +392,7 @@ def _plot_grip_force(telemetry: Telemetry, path: Path, colors: dict[str, tuple[f
     ax.set_ylim(bottom=min(0.0, float(f.min(initial=0.0))), top=max(1.0, 1.1 * float(f.sum(axis=1).max(initial=0.0))))
     ax.set_xlabel("time (s)")
     ax.set_ylabel("pad normal force (N)")
-    ax.set_title("grip force (normal force of the cube on each pad)")
+    ax.set_title("grip force (normal force of the object on each pad)")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8, loc="upper left")
     fig.savefig(path, dpi=110)
@@ -430,7 +430,7 @@ def save_plots(telemetry: Telemetry, out_dir: str | Path) -> list[Path]:
     Files:
         ``joint_tracking.png``: per tracked trajectory (one row each), q and q_ref (rad) and the tracking
         error q - q_ref (mrad) of the six arm joints against time (s).
-        ``tcp_height.png``: tcp and cube centre heights (m) and the goal height against time, phases shaded.
+        ``tcp_height.png``: tcp and object origin heights (m) and the goal height against time, phases shaded.
         ``grip_force.png``: left and right pad normal forces and their sum (N) against time, phases shaded.
         ``phase_timeline.png``: one horizontal bar per phase span (s), one row per phase.
 

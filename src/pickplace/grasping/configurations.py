@@ -1,127 +1,187 @@
-"""Joint configurations for the four tcp targets, each solved by IK and checked for collisions.
+"""Joint configurations for the tcp targets of a pick and place, each solved by IK and checked for collisions.
 
-The chain follows the motion: ``pregrasp`` is solved from ``home``, ``grasp`` from ``pregrasp`` (so the
-descent stays on one IK branch), ``preplace`` from ``pregrasp`` and ``place`` from ``preplace``. Each is
-checked with the collision policy of the moment it is reached: open gripper around the resting cube at the
-grasp, cube carried at ``preplace`` and ``place`` (where it may touch the table).
+Grasps are tried in order until one works: for each, the chain follows the motion: ``pregrasp`` is solved
+from ``home``, ``grasp`` from ``pregrasp`` (so the straight approach stays on one IK branch), ``lift`` from
+``grasp``, ``preplace`` from ``lift`` and ``place`` from ``preplace``. Each is checked with the collision
+policy of the moment it is reached: open gripper around the resting object at the grasp, the object carried
+at ``lift``, ``preplace`` and ``place`` (where it may touch the table).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 
 from pickplace.errors import UnreachableTarget
-from pickplace.grasping.targets import GraspTargets, T_tcp_cube, grasp_targets
+from pickplace.grasping.targets import GraspTargets, grasp_targets, top_down_face_grasps, wrist_reference
 from pickplace.motion.collision import CollisionChecker, CollisionPolicy
 from pickplace.robot.gripper import GripperGeometry
 from pickplace.robot.ik import IKConfig, IKResult, solve_ik
-from pickplace.robot.kinematics import frame_pose
+from pickplace.robot.kinematics import frame_pose, rot_z, rotation_distance
 from pickplace.robot.model import Robot
+
+#: Below this distance (m) the lift target is the pregrasp (a top-down grasp): it is not solved twice.
+_SAME_POSE_M = 1e-6
 
 
 @dataclass(frozen=True)
 class GraspConfigurations:
-    """IK solutions of the four targets.
+    """IK solutions of the targets of the grasp that worked.
 
     Attributes:
         targets: The tcp poses they reach.
-        pregrasp, grasp, preplace, place: The IK results (``.q`` is the arm configuration (6,) in rad).
-        held_finger_m: Finger travel while the cube is held (m).
-        cube_yaw_rad: Yaw of the cube that is grasped (rad).
+        pregrasp, grasp, lift, preplace, place: The IK results (``.q`` is the arm configuration (6,) in rad).
+        held_finger_m: Finger travel while the object is held (m).
+        grasps_tried: How many grasps were tried before this one worked (1: the first).
     """
 
     targets: GraspTargets
     pregrasp: IKResult
     grasp: IKResult
+    lift: IKResult
     preplace: IKResult
     place: IKResult
     held_finger_m: float
-    cube_yaw_rad: float
+    grasps_tried: int = 1
 
     def results(self) -> list[IKResult]:
-        """The four results in visiting order."""
-        return [self.pregrasp, self.grasp, self.preplace, self.place]
+        """The results in visiting order (the lift only if it is not the pregrasp, as for a top-down grasp)."""
+        lift = [] if self.lift is self.pregrasp else [self.lift]
+        return [self.pregrasp, self.grasp, *lift, self.preplace, self.place]
 
-    def carrying_checker(self, robot: Robot, margin_m: float, allow_cube_table: bool = False) -> CollisionChecker:
-        """A checker for the arm carrying the cube as grasped here (see :func:`carrying_checker`)."""
-        return carrying_checker(robot, self.targets, self.cube_yaw_rad, self.held_finger_m, margin_m,
-                                allow_cube_table)
+    def carrying_checker(self, robot: Robot, margin_m: float, allow_object_table: bool = False) -> CollisionChecker:
+        """A checker for the arm carrying the object as grasped here (see :func:`carrying_checker`)."""
+        return carrying_checker(robot, self.targets.T_tcp_object, self.held_finger_m, margin_m, allow_object_table)
 
 
 def carrying_checker(
     robot: Robot,
-    targets: GraspTargets,
-    cube_yaw_rad: float,
+    T_tcp_object: pin.SE3,
     finger_m: float,
     margin_m: float,
-    allow_cube_table: bool = False,
+    allow_object_table: bool = False,
 ) -> CollisionChecker:
-    """A collision checker for the arm carrying the cube, held at ``targets.grasp`` with the given yaw.
+    """A collision checker for the arm carrying the object, held at ``T_tcp_object``.
 
     Args:
         robot: The models.
-        targets: The tcp targets (the cube's pose in the tcp frame follows from the grasp).
-        cube_yaw_rad: Yaw of the grasped cube (rad).
+        T_tcp_object: The object's pose in the tcp frame.
         finger_m: Finger travel while holding it (m).
         margin_m: Safety margin to the table, floor and obstacles (m).
-        allow_cube_table: Whether the cube may touch the table (setting it down).
+        allow_object_table: Whether the object may touch the table (setting it down).
     """
-    policy = CollisionPolicy(margin_m=margin_m, cube_held=True, allow_cube_table=allow_cube_table, finger_m=finger_m)
-    return CollisionChecker(robot, policy, T_tcp_cube=T_tcp_cube(targets, cube_yaw_rad))
+    policy = CollisionPolicy(margin_m=margin_m, object_held=True, allow_object_table=allow_object_table,
+                             finger_m=finger_m)
+    return CollisionChecker(robot, policy, T_tcp_object=T_tcp_object)
+
+
+def home_tcp(robot: Robot) -> pin.SE3:
+    """The tcp's pose at the ``home`` keyframe."""
+    return frame_pose(robot.pin, robot.pin.createData(), robot.pin_q(robot.home_q), robot.pin_tcp_frame)
+
+
+def start_pose(robot: Robot) -> pin.SE3:
+    """The object's pose at the start of the scene (resting, turned by the start yaw)."""
+    scene = robot.scene
+    return pin.SE3(rot_z(scene.start_yaw_rad), scene.start_pos_m)
+
+
+def candidate_grasps(robot: Robot, T_world_object: pin.SE3) -> list[tuple[pin.SE3, float]]:
+    """Grasps of the object where it is, best first: ``[(T_object_tcp, width_m)]``.
+
+    Top-down grasps across the faces of a box, the wrist turned as little as possible from ``home``.
+
+    Raises:
+        UnreachableTarget: the object is not a box (no grasp is known for it).
+    """
+    scene, geom = robot.scene, GripperGeometry.measure(robot)
+    if scene.object.kind != "box":
+        raise UnreachableTarget("grasp", f"no grasp is known for a {scene.object.kind}")
+    grasps = top_down_face_grasps(scene, T_world_object, geom.pad_half_height_m)
+    ref = wrist_reference(home_tcp(robot), T_world_object.translation[:2])
+    return sorted(grasps, key=lambda g: rotation_distance((T_world_object * g[0]).rotation, ref))
 
 
 def solve_grasp_configurations(
     robot: Robot,
     ik_config: IKConfig | None = None,
-    cube_pos_m: np.ndarray | None = None,
-    cube_yaw_rad: float | None = None,
+    T_world_object: pin.SE3 | None = None,
     world: mujoco.MjData | None = None,
     clearance_m: float = 0.0,
+    grasps: Sequence[tuple[pin.SE3, float]] | None = None,
 ) -> GraspConfigurations:
-    """Targets for the scene's cube and goal, solved to joint configurations.
+    """Targets for the scene's object and goal, solved to joint configurations with the first grasp that works.
 
     Args:
         robot: The models.
         ik_config: IK settings.
-        cube_pos_m: The cube's centre (3,) (m); default: its start in the scene.
-        cube_yaw_rad: The cube's yaw (rad); default: its start yaw in the scene.
-        world: The simulation state the solutions must be collision free in (where the cube rests, anything
+        T_world_object: The object's pose; default: its start in the scene.
+        world: The simulation state the solutions must be collision free in (where the object rests, anything
             that moved); default: the scene's initial state.
-        clearance_m: Clearance the pregrasp and preplace configurations must keep from the table, floor and
-            obstacles (m), e.g. the planner's margin so that it accepts them as goals. The grasp and the place
-            are checked at contact (the fingers work 5 mm above the table).
+        clearance_m: Clearance the pregrasp, lift and preplace configurations must keep from the table, floor
+            and obstacles (m), e.g. the planner's margin so that it accepts them as goals. The grasp and the
+            place are checked at contact (the fingers work 5 mm above the table).
+        grasps: ``[(T_object_tcp, width_m)]`` to try, in order; default: :func:`candidate_grasps`.
 
     Raises:
-        UnreachableTarget: naming the target that cannot be reached collision free.
+        UnreachableTarget: no grasp reaches every target collision free (the first grasp's failure is named).
     """
-    scene = robot.scene
+    T_world_object = start_pose(robot) if T_world_object is None else T_world_object
     geom = GripperGeometry.measure(robot)
-    T_home = frame_pose(robot.pin, robot.pin.createData(), robot.pin_q(robot.home_q), robot.pin_tcp_frame)
-    cube_yaw = scene.cube_yaw_rad if cube_yaw_rad is None else cube_yaw_rad
-    targets = grasp_targets(scene, geom.pad_half_height_m, T_home, cube_pos_m, cube_yaw)
-    held = geom.contact_travel_m(scene.cube_size_m)
+    T_home = home_tcp(robot)
+    grasps = candidate_grasps(robot, T_world_object) if grasps is None else list(grasps)
+    if not grasps:
+        raise UnreachableTarget("grasp", f"no grasp of the {robot.scene.object.name} fits the gripper")
     free = CollisionChecker(robot, CollisionPolicy(margin_m=0.0))
     above = CollisionChecker(robot, CollisionPolicy(margin_m=clearance_m))
-    carry = carrying_checker(robot, targets, cube_yaw, held, margin_m=clearance_m)
-    place = carrying_checker(robot, targets, cube_yaw, held, margin_m=0.0, allow_cube_table=True)
-    if world is not None:
-        for checker in (free, above, carry, place):
+    for checker in (free, above):
+        if world is not None:
             checker.set_world(world)
+    first_error: UnreachableTarget | None = None
+    for tried, (T_object_tcp, width) in enumerate(grasps, start=1):
+        targets = grasp_targets(robot.scene, T_world_object, T_object_tcp, width, T_home)
+        held = geom.contact_travel_m(width)
+        carry = carrying_checker(robot, targets.T_tcp_object, held, margin_m=clearance_m)
+        place = carrying_checker(robot, targets.T_tcp_object, held, margin_m=0.0, allow_object_table=True)
+        if world is not None:
+            for checker in (carry, place):
+                checker.set_world(world)
+        try:
+            results = _solve_chain(robot, targets, ik_config, free, above, carry, place)
+        except UnreachableTarget as exc:
+            first_error = first_error or exc
+            continue
+        return GraspConfigurations(targets, *results, held_finger_m=held, grasps_tried=tried)
+    assert first_error is not None
+    if len(grasps) == 1:
+        raise first_error
+    raise UnreachableTarget(first_error.target, f"{first_error.reason} (and {len(grasps) - 1} other grasps failed)",
+                            first_error.position_error_m, first_error.orientation_error_rad)
+
+
+def _solve_chain(robot: Robot, targets: GraspTargets, ik_config: IKConfig | None, free: CollisionChecker,
+                 above: CollisionChecker, carry: CollisionChecker, place: CollisionChecker) -> list[IKResult]:
+    """IK of pregrasp, grasp, lift, preplace and place, each from the previous one, each checked."""
+    poses = dict(targets.named())
 
     def solve(name: str, q0: np.ndarray, checker: CollisionChecker) -> IKResult:
         try:
-            return solve_ik(robot, dict(targets.named())[name], q0, name, ik_config, checker.is_valid)
+            return solve_ik(robot, poses[name], q0, name, ik_config, checker.is_valid)
         except UnreachableTarget as exc:
-            raise _with_collisions(exc, checker, robot, dict(targets.named())[name], q0, ik_config) from None
+            raise _with_collisions(exc, checker, robot, poses[name], q0, ik_config) from None
 
     pre = solve("pregrasp", robot.home_q, above)
     grasp = solve("grasp", pre.q, free)
-    preplace = solve("preplace", pre.q, carry)
+    same = np.linalg.norm(targets.lift.translation - targets.pregrasp.translation) < _SAME_POSE_M
+    lift = pre if same and rotation_distance(targets.lift.rotation, targets.pregrasp.rotation) < 1e-9 \
+        else solve("lift", grasp.q, carry)
+    preplace = solve("preplace", lift.q, carry)
     placed = solve("place", preplace.q, place)
-    return GraspConfigurations(targets, pre, grasp, preplace, placed, held, cube_yaw)
+    return [pre, grasp, lift, preplace, placed]
 
 
 def _with_collisions(exc: UnreachableTarget, checker: CollisionChecker, robot: Robot, target, q0,

@@ -1,24 +1,24 @@
-"""The hold test: how well the gripper holds the cube, measured before any arm control is involved.
+"""The hold test: how well the gripper holds the object, measured before any arm control is involved.
 
 The arm is driven *kinematically* along a Cartesian tcp path (its joints are set to the IK reference every
 step, with the inverse-dynamics torque applied so the bodies feel the right accelerations), the gripper closes
-on the cube with its real actuator, lifts it 0.15 m and carries it 0.40 m sideways with a peak acceleration
-above 3 m/s^2, and the cube's slip relative to the pads and the grip normal force are measured.
+on the object with its real actuator, lifts it 0.15 m and carries it 0.40 m sideways with a peak acceleration
+above 3 m/s^2, and the object's slip relative to the pads and the grip normal force are measured.
 """
 
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 import pinocchio as pin
 
-from pickplace.grasping.targets import grasp_targets
-from pickplace.robot.gripper import GripperGeometry, command, finger_travel, in_contact, pad_forces
+from pickplace.grasping.configurations import solve_grasp_configurations
+from pickplace.robot.gripper import command, finger_travel, in_contact, pad_forces
 from pickplace.robot.ik import IKConfig, dls_iterate, solve_ik
-from pickplace.robot.kinematics import frame_pose, rotation_distance
+from pickplace.robot.kinematics import rotation_distance
 from pickplace.robot.model import Robot, build
 from pickplace.world.config import SceneConfig, check_range
 
@@ -42,7 +42,7 @@ class HoldTestConfig:
         carry_m: Sideways carry distance, towards the goal (m).
         carry_time_s: Duration of the (minimum-jerk) carry (s); 0.8 s over 0.40 m peaks at 3.6 m/s^2.
         dwell_s: Hold still at the end (s).
-        slip_tolerance_m: Slip beyond which the cube counts as not held (m).
+        slip_tolerance_m: Slip beyond which the object counts as not held (m).
     """
 
     descend_time_s: float = 0.5
@@ -68,17 +68,17 @@ class HoldResult:
     """What the hold test measured.
 
     Attributes:
-        cube_mass_kg: Mass of the cube held (kg).
-        held: True when the slip stayed below tolerance and both pads still squeeze the cube at the end.
-        slip_m: Largest displacement of the cube relative to the tcp after closing (m).
-        slip_rad: Largest rotation of the cube relative to the tcp after closing (rad).
+        mass_kg: Mass of the object held (kg).
+        held: True when the slip stayed below tolerance and both pads still squeeze the object at the end.
+        slip_m: Largest displacement of the object relative to the tcp after closing (m).
+        slip_rad: Largest rotation of the object relative to the tcp after closing (rad).
         grip_force_n: Mean normal force per pad during the lift and carry (N).
         min_grip_force_n: Smallest per-pad normal force during the lift and carry (N).
         peak_acceleration_m_s2: Peak tcp acceleration of the motion (m/s^2).
         load_n: The largest force the grip must transmit, m (g + a_peak) (N).
     """
 
-    cube_mass_kg: float
+    mass_kg: float
     held: bool
     slip_m: float
     slip_rad: float
@@ -96,11 +96,9 @@ def _min_jerk(s: np.ndarray) -> np.ndarray:
 def _tcp_path(robot: Robot, cfg: HoldTestConfig, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """Reference tcp positions (N, 3), orientation (3, 3), phase labels (N,) and the close-end index."""
     scene = robot.scene
-    geom = GripperGeometry.measure(robot)
-    T_home = frame_pose(robot.pin, robot.pin.createData(), robot.pin_q(robot.home_q), robot.pin_tcp_frame)
-    tg = grasp_targets(scene, geom.pad_half_height_m, T_home)
+    tg = solve_grasp_configurations(robot).targets  # the grasp an episode would take
     top, bottom = tg.pregrasp.translation, tg.grasp.translation
-    direction = np.append(scene.goal_pos_m[:2] - scene.cube_start_pos_m[:2], 0.0)
+    direction = np.append(scene.goal_pos_m[:2] - scene.start_pos_m[:2], 0.0)
     direction /= max(np.linalg.norm(direction), 1e-9)
     lifted = bottom + np.array([0.0, 0.0, cfg.lift_m])
     segments = [  # (start, end, duration, label)
@@ -143,10 +141,10 @@ def hold_test(
     config: HoldTestConfig | None = None,
     reference: tuple[np.ndarray, ...] | None = None,
 ) -> HoldResult:
-    """Close on the cube, lift it and carry it sideways with the arm driven kinematically; measure the hold.
+    """Close on the object, lift it and carry it sideways with the arm driven kinematically; measure the hold.
 
     Args:
-        scene: The scene (its cube mass, size and friction are what is tested).
+        scene: The scene (its object mass, size and friction are what is tested).
         config: The motion.
         reference: A joint reference from a previous call on the same geometry (reused to save time).
 
@@ -181,7 +179,7 @@ def hold_test(
         ap[:6] = qdd[k]
         tau = pin.rnea(robot.pin, pdata, qp, vp, ap)
         # ... plus the previous step's contact reaction on the arm, as a perfect position controller would
-        # apply: otherwise the load pulls the arm within each step, the reset undoes it, and the cube
+        # apply: otherwise the load pulls the arm within each step, the reset undoes it, and the object
         # appears to creep out of the grip by an artefact of the playback, not of the contacts.
         d.qfrc_applied[h.arm_dof] = tau[:6] + damping * qd[k] - d.qfrc_constraint[h.arm_dof]
         mujoco.mj_step(m, d)
@@ -189,8 +187,8 @@ def hold_test(
         tcp[k] = T_world_tcp.translation
         if k + 1 < close_end:
             continue
-        T_world_cube = pin.SE3(d.xmat[h.cube_body].reshape(3, 3).copy(), d.xpos[h.cube_body].copy())
-        rel = T_world_tcp.actInv(T_world_cube)
+        T_world_object = pin.SE3(d.xmat[h.object_body].reshape(3, 3).copy(), d.xpos[h.object_body].copy())
+        rel = T_world_tcp.actInv(T_world_object)
         if rel0 is None:
             rel0 = rel
             continue
@@ -204,14 +202,14 @@ def hold_test(
     peak = float(acc[close_end:].max())
     held = slip_m < cfg.slip_tolerance_m and in_contact(robot, d)
     result = HoldResult(
-        cube_mass_kg=scene.cube_mass_kg,
+        mass_kg=scene.object.mass_kg,
         held=bool(held),
         slip_m=slip_m,
         slip_rad=slip_rad,
         grip_force_n=float(f.mean()),
         min_grip_force_n=float(f.min()),
         peak_acceleration_m_s2=peak,
-        load_n=scene.cube_mass_kg * (9.81 + peak),
+        load_n=scene.object.mass_kg * (9.81 + peak),
     )
     log.info("hold test: %s", result)
     return result
@@ -222,18 +220,18 @@ class HoldMargin:
     """The hold test at the nominal mass and at increasing multiples of it.
 
     Attributes:
-        nominal: The result at the scene's cube mass.
+        nominal: The result at the scene's object mass.
         results: Every mass tried, in order.
-        safety_factor: Heaviest cube held / nominal mass (a lower bound: the multiples tried are discrete).
-        cube_friction: The friction coefficient of the test (the scene's).
-        coulomb_limit_kg: The heaviest cube Coulomb friction can carry through the motion,
+        safety_factor: Heaviest object held / nominal mass (a lower bound: the multiples tried are discrete).
+        friction: The friction coefficient of the test (the object's).
+        coulomb_limit_kg: The heaviest object Coulomb friction can carry through the motion,
             ``2 mu F_pad / (g + a_peak)`` with the nominal run's pad force and peak acceleration (kg).
     """
 
     nominal: HoldResult
     results: tuple[HoldResult, ...]
     safety_factor: float
-    cube_friction: float
+    friction: float
     coulomb_limit_kg: float
 
 
@@ -242,7 +240,7 @@ def hold_margin(
     config: HoldTestConfig | None = None,
     multiples: tuple[float, ...] = (1.0, 3.0, 5.0, 8.0, 12.0, 16.0, 20.0, 25.0, 30.0),
 ) -> HoldMargin:
-    """Run the hold test at ``multiples`` of the cube's mass until one fails; return the safety factor.
+    """Run the hold test at ``multiples`` of the object's mass until one fails; return the safety factor.
 
     Masses above the UR5e's 5 kg payload are not tried.
     """
@@ -254,15 +252,15 @@ def hold_margin(
     results: list[HoldResult] = []
     best = 0.0
     for k in multiples:
-        mass = scene.cube_mass_kg * k
+        mass = scene.object.mass_kg * k
         if mass > 5.0:
             break
-        r = hold_test(replace(scene, cube_mass_kg=mass), cfg, reference)
+        r = hold_test(scene.with_object(mass_kg=mass), cfg, reference)
         results.append(r)
         if not r.held:
             break
         best = k
     nominal = results[0]
-    limit = 2.0 * scene.cube_friction * nominal.grip_force_n / (9.81 + nominal.peak_acceleration_m_s2)
-    return HoldMargin(nominal=nominal, results=tuple(results), safety_factor=best, cube_friction=scene.cube_friction,
+    limit = 2.0 * scene.object.friction * nominal.grip_force_n / (9.81 + nominal.peak_acceleration_m_s2)
+    return HoldMargin(nominal=nominal, results=tuple(results), safety_factor=best, friction=scene.object.friction,
                       coulomb_limit_kg=limit)

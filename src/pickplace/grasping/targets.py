@@ -1,27 +1,42 @@
-"""Tcp targets for the pick and the place: top-down poses across the cube's faces.
+"""Tcp targets for the pick and the place, from a grasp given in the object's frame.
 
-The gripper closes along its y axis, so a grasp across two opposite faces of a cube with yaw ``psi`` needs
-a tcp yaw in ``psi + k pi/2``. Of those four, :func:`grasp_targets` takes the one that keeps the wrist
-closest to its ``home`` twist relative to the arm (the same rule at the goal), so a cube rotated by up to
-+/-45 degrees is taken across its faces with less than 45 degrees of extra wrist rotation.
+A grasp is the tcp's pose in the object's resting frame, ``T_object_tcp`` (tcp z: the approach direction,
+pointing into the object; tcp y: the closing axis). With the object observed at ``T_world_object``:
+
+* ``grasp = T_world_object * T_object_tcp``; ``pregrasp`` is backed off from it along the approach by
+  ``CLEARANCE_M`` (straight up for a top-down grasp, sideways for a side grasp);
+* ``lift``: the grasp raised straight up by ``CLEARANCE_M`` (the object leaves the table vertically);
+* the place sets the object down at the goal **on the face it rested on**, turned to the goal's yaw: its
+  orientation there is ``Rz(d) R_world_object`` with ``d`` the goal yaw minus the object's yaw (modulo the
+  object's symmetry, :attr:`~pickplace.world.objects.ObjectConfig.yaw_period_rad`), so a standing can stays
+  standing and a lying one lying; ``place`` is the tcp holding it there, ``PLACE_DROP_M`` above resting;
+  ``preplace`` is ``CLEARANCE_M`` straight above.
+
+Where the object's symmetry leaves a choice (a cube looks the same turned by 90 degrees, a standing can by
+any angle), the tcp orientation closest to the wrist's ``home`` orientation turned to face the object (or
+the goal) is taken, so the wrist turns as little as it can.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 
-from pickplace.robot.kinematics import rot_z, wrap_to_pi, yaw_of
+from pickplace.robot.kinematics import rot_z, rotation_distance, wrap_to_pi
 from pickplace.world.config import SceneConfig
 
-#: Height of the pregrasp and preplace poses above the grasp and place poses (m) (reference design).
+#: Distance of the pregrasp from the grasp along the approach, of the lift above the grasp and of the preplace
+#: above the place (m) (reference design).
 CLEARANCE_M = 0.150
 #: Gap kept between the finger tips and the table at the grasp (m).
 TABLE_GAP_M = 0.005
-#: Height above its resting height at which the cube is let go at the goal (m).
+#: Height above its resting height at which the object is let go at the goal (m).
 PLACE_DROP_M = 0.001
+#: Turns tried for an object whose yaw is not defined (a standing can, a ball): every 15 degrees.
+_FREE_YAW_STEPS = 24
 
 _TOP_DOWN = np.diag([1.0, -1.0, -1.0])  # tcp z along world -z, tcp x along world x
 
@@ -31,19 +46,13 @@ def top_down(yaw: float) -> np.ndarray:
     return rot_z(yaw) @ _TOP_DOWN
 
 
-def face_yaw(object_yaw: float, reference_yaw: float) -> float:
-    """The tcp yaw in ``object_yaw + k pi/2`` closest to ``reference_yaw`` (rad)."""
-    k = np.round(float(wrap_to_pi(reference_yaw - object_yaw)) / (np.pi / 2))
-    return float(wrap_to_pi(object_yaw + k * np.pi / 2))
+def object_yaw(R_world_object: np.ndarray) -> float:
+    """Yaw (rad) of a resting object: the heading of the first of its axes that is not (nearly) vertical.
 
-
-def cube_yaw(R_world_cube: np.ndarray) -> float:
-    """Yaw (rad) of a cube resting on any of its faces, defined modulo pi/2.
-
-    The cube's own z axis need not point up (a dropped cube lands on any face): the yaw is that of the
-    first of its axes that is not the (nearly) vertical one.
+    For an object on its resting face that is the heading of its x axis; for one that landed on another face
+    (a dropped cube), the heading of the next axis round, so that the yaw is still defined.
     """
-    R = np.asarray(R_world_cube, dtype=float)
+    R = np.asarray(R_world_object, dtype=float)
     up = int(np.argmax(np.abs(R[2])))
     side = R[:, (up + 1) % 3]
     return float(np.arctan2(side[1], side[0]))
@@ -53,114 +62,194 @@ def _bearing(xy: np.ndarray) -> float:
     return float(np.arctan2(xy[1], xy[0]))
 
 
+def wrist_reference(T_world_tcp_home: pin.SE3, towards_xy: np.ndarray) -> np.ndarray:
+    """The tcp's ``home`` orientation turned about world z to face the point ``towards_xy`` (3, 3).
+
+    Among orientations the task leaves free, the one closest to this keeps the wrist nearest its home twist.
+    """
+    turn = _bearing(np.asarray(towards_xy)) - _bearing(T_world_tcp_home.translation)
+    return rot_z(turn) @ T_world_tcp_home.rotation
+
+
+def symmetric_turns(period_rad: float) -> np.ndarray:
+    """The turns about the vertical (rad) under which an object with this yaw period looks the same."""
+    if period_rad <= 0.0:  # any turn
+        return np.arange(_FREE_YAW_STEPS) * (2.0 * math.pi / _FREE_YAW_STEPS)
+    return np.arange(max(1, round(2.0 * math.pi / period_rad))) * period_rad
+
+
+def place_orientation(
+    R_world_object: np.ndarray,
+    goal_yaw_rad: float,
+    period_rad: float,
+    T_object_tcp: pin.SE3,
+    R_reference: np.ndarray,
+) -> np.ndarray:
+    """The object's orientation at the goal (3, 3): on the face it rests on now, at the goal's yaw.
+
+    Args:
+        R_world_object: The object's orientation now (resting, or held as it rested).
+        goal_yaw_rad: The goal's yaw (rad).
+        period_rad: The object's yaw symmetry (0: yaw not defined).
+        T_object_tcp: The grasp, to compare the tcp orientations the choices give.
+        R_reference: The tcp orientation to stay close to (e.g. :func:`wrist_reference` towards the goal).
+    """
+    base = goal_yaw_rad - object_yaw(R_world_object)
+    best, best_d = None, math.inf
+    for turn in symmetric_turns(period_rad):
+        R = rot_z(base + turn) @ R_world_object
+        d = rotation_distance(R @ T_object_tcp.rotation, R_reference)
+        if d < best_d - 1e-12:
+            best, best_d = R, d
+    assert best is not None
+    return best
+
+
 @dataclass(frozen=True)
 class GraspTargets:
-    """The four tcp poses of a pick and place, ``T_world_tcp``.
+    """The tcp poses of a pick and place, ``T_world_tcp``, and the grasp they come from.
 
     Attributes:
-        pregrasp: Above the cube, ``CLEARANCE_M`` over the grasp.
-        grasp: Pads centred on the cube's faces.
-        preplace: Above the goal, ``CLEARANCE_M`` over the place.
-        place: The cube at the goal (``PLACE_DROP_M`` above resting), pads still closed.
-        grasp_yaw_rad: Tcp yaw at the grasp (rad).
-        place_yaw_rad: Tcp yaw at the place (rad).
-        tcp_above_cube_m: Height of the tcp above the cube's centre while it is held (m).
+        pregrasp: ``CLEARANCE_M`` back from the grasp along the approach.
+        grasp: The pads on the object.
+        lift: The grasp raised ``CLEARANCE_M`` straight up.
+        preplace: ``CLEARANCE_M`` above the place.
+        place: The object at the goal (``PLACE_DROP_M`` above resting), pads still closed.
+        T_object_tcp: The grasp in the object's frame.
+        width_m: Width of the object between the pads (m).
+        R_world_object_goal: The object's orientation at the goal (3, 3).
     """
 
     pregrasp: pin.SE3
     grasp: pin.SE3
+    lift: pin.SE3
     preplace: pin.SE3
     place: pin.SE3
-    grasp_yaw_rad: float
-    place_yaw_rad: float
-    tcp_above_cube_m: float
+    T_object_tcp: pin.SE3
+    width_m: float
+    R_world_object_goal: np.ndarray
 
     def named(self) -> list[tuple[str, pin.SE3]]:
         """``[(name, pose)]`` in the order they are visited."""
-        return [("pregrasp", self.pregrasp), ("grasp", self.grasp), ("preplace", self.preplace),
-                ("place", self.place)]
+        return [("pregrasp", self.pregrasp), ("grasp", self.grasp), ("lift", self.lift),
+                ("preplace", self.preplace), ("place", self.place)]
+
+    @property
+    def T_tcp_object(self) -> pin.SE3:
+        """The object's pose in the tcp frame once it is grasped as planned."""
+        return self.T_object_tcp.inverse()
+
+
+def backed_off(T_world_tcp: pin.SE3, distance_m: float) -> pin.SE3:
+    """The tcp moved ``distance_m`` back along its own z axis (away from what it approaches)."""
+    return pin.SE3(T_world_tcp.rotation, T_world_tcp.translation - distance_m * T_world_tcp.rotation[:, 2])
+
+
+def raised(T_world_tcp: pin.SE3, height_m: float) -> pin.SE3:
+    """The tcp moved ``height_m`` straight up."""
+    return pin.SE3(T_world_tcp.rotation, T_world_tcp.translation + np.array([0.0, 0.0, height_m]))
 
 
 def grasp_targets(
     scene: SceneConfig,
-    pad_half_height_m: float,
+    T_world_object: pin.SE3,
+    T_object_tcp: pin.SE3,
+    width_m: float,
     T_world_tcp_home: pin.SE3,
-    cube_pos_m: np.ndarray | None = None,
-    cube_yaw_rad: float | None = None,
 ) -> GraspTargets:
-    """Tcp poses to pick the cube and place it at the goal.
+    """Tcp poses to pick the object with the grasp ``T_object_tcp`` and place it at the goal.
 
     Args:
-        scene: The scene (goal, table height, cube size).
-        pad_half_height_m: Half the pads' height (m): the grasp is raised if needed so the finger tips stay
-            ``TABLE_GAP_M`` above the table (small cubes are then held above their centre).
-        T_world_tcp_home: Tcp pose at ``home``; its twist relative to the arm's bearing is kept.
-        cube_pos_m: The cube's centre (3,) (m); default: its start in the scene.
-        cube_yaw_rad: The cube's yaw (rad); default: its start yaw in the scene.
+        scene: The scene (goal, table, object).
+        T_world_object: The object's pose now.
+        T_object_tcp: The grasp, in the object's frame.
+        width_m: Width of the object between the pads (m).
+        T_world_tcp_home: Tcp pose at ``home``: among equivalent places, the wrist stays closest to it.
     """
-    cube = scene.cube_start_pos_m if cube_pos_m is None else np.asarray(cube_pos_m, dtype=float)
-    cube_yaw = scene.cube_yaw_rad if cube_yaw_rad is None else cube_yaw_rad
-    home_twist = yaw_of(T_world_tcp_home.rotation) - _bearing(T_world_tcp_home.translation)
-
-    tcp_z = max(cube[2], scene.table_height_m + pad_half_height_m + TABLE_GAP_M)
-    above = tcp_z - cube[2]
-    grasp_yaw = face_yaw(cube_yaw, _bearing(cube) + home_twist)
+    grasp = T_world_object * T_object_tcp
     goal = scene.goal_pos_m
-    place_yaw = face_yaw(scene.goal_yaw_rad, _bearing(goal) + home_twist)
-
-    def pose(xy: np.ndarray, z: float, yaw: float) -> pin.SE3:
-        return pin.SE3(top_down(yaw), np.array([xy[0], xy[1], z]))
-
-    place_z = goal[2] + above + PLACE_DROP_M
+    R_goal = place_orientation(T_world_object.rotation, scene.goal_yaw_rad, scene.object.yaw_period_rad,
+                               T_object_tcp, wrist_reference(T_world_tcp_home, goal[:2]))
+    place = pin.SE3(R_goal, goal + np.array([0.0, 0.0, PLACE_DROP_M])) * T_object_tcp
     return GraspTargets(
-        pregrasp=pose(cube, tcp_z + CLEARANCE_M, grasp_yaw),
-        grasp=pose(cube, tcp_z, grasp_yaw),
-        preplace=pose(goal, place_z + CLEARANCE_M, place_yaw),
-        place=pose(goal, place_z, place_yaw),
-        grasp_yaw_rad=grasp_yaw,
-        place_yaw_rad=place_yaw,
-        tcp_above_cube_m=above,
-    )
+        pregrasp=backed_off(grasp, CLEARANCE_M), grasp=grasp, lift=raised(grasp, CLEARANCE_M),
+        preplace=raised(place, CLEARANCE_M), place=place, T_object_tcp=T_object_tcp, width_m=width_m,
+        R_world_object_goal=R_goal)
 
 
-def T_tcp_cube(targets: GraspTargets, cube_yaw_rad: float) -> pin.SE3:
-    """Pose of the cube in the tcp frame once it is grasped at ``targets.grasp``."""
-    R = targets.grasp.rotation.T @ rot_z(cube_yaw_rad)
-    return pin.SE3(R, np.array([0.0, 0.0, targets.tcp_above_cube_m]))
+def place_targets(scene: SceneConfig, T_world_tcp: pin.SE3, T_world_object: pin.SE3,
+                  R_world_object_goal: np.ndarray) -> tuple[pin.SE3, pin.SE3]:
+    """Preplace and place tcp poses that set the object down at the goal *as it sits in the hand now*.
 
-
-def place_targets(
-    scene: SceneConfig,
-    T_world_tcp: pin.SE3,
-    T_world_cube: pin.SE3,
-    reference_yaw_rad: float,
-) -> tuple[pin.SE3, pin.SE3, float]:
-    """Preplace and place tcp poses that set the cube down at the goal *as it sits in the hand now*.
-
-    The grasp never centres the cube perfectly (the pads push it while they close), so the place is
-    computed from the measured hand-cube offset rather than the nominal one: the cube's horizontal offset
-    and yaw relative to the tcp and its depth below the tcp are kept, and the tcp is placed so the cube's
-    centre lands on the goal with the goal's yaw (modulo the cube's 90 degree symmetry).
+    The grasp never holds the object exactly as planned (the pads push it while they close, it settles in
+    transit), so the place is computed from the measured hand-object pose: the tcp is placed so that the
+    object, held as it is, lands at the goal with the planned orientation ``R_world_object_goal`` turned by
+    whatever it has turned in the hand about the vertical, so that its yaw still comes out at the goal's.
 
     Args:
-        scene: The scene (goal, table height, cube size).
-        T_world_tcp: Tcp pose now (while holding the cube).
-        T_world_cube: Cube pose now.
-        reference_yaw_rad: Tcp yaw to stay close to among the four equivalent ones (rad), e.g. the
-            nominal :attr:`GraspTargets.place_yaw_rad`.
+        scene: The scene (goal, table, object).
+        T_world_tcp: Tcp pose now (while holding the object).
+        T_world_object: Object pose now.
+        R_world_object_goal: The object's planned orientation at the goal (from :func:`grasp_targets`).
 
     Returns:
-        ``(preplace, place, place_yaw_rad)``: the two tcp poses and the tcp yaw at the place (rad).
+        ``(preplace, place)``.
     """
-    tcp_yaw = yaw_of(T_world_tcp.rotation)
-    offset_world = T_world_cube.translation - T_world_tcp.translation
-    offset_tcp = rot_z(-tcp_yaw)[:2, :2] @ offset_world[:2]  # horizontal offset in the tcp's yaw frame
-    below = -offset_world[2]  # tcp height above the cube's centre
-    cube_in_hand_yaw = float(wrap_to_pi(cube_yaw(T_world_cube.rotation) - tcp_yaw))
-    place_yaw = face_yaw(scene.goal_yaw_rad - cube_in_hand_yaw, reference_yaw_rad)
-    goal = scene.goal_pos_m
-    xy = goal[:2] - rot_z(place_yaw)[:2, :2] @ offset_tcp
-    z = goal[2] + below + PLACE_DROP_M
-    place = pin.SE3(top_down(place_yaw), np.array([xy[0], xy[1], z]))
-    preplace = pin.SE3(top_down(place_yaw), np.array([xy[0], xy[1], z + CLEARANCE_M]))
-    return preplace, place, place_yaw
+    T_object_tcp = T_world_object.actInv(T_world_tcp)
+    R = rot_z(float(wrap_to_pi(object_yaw(R_world_object_goal) - object_yaw(T_world_object.rotation)))) @ \
+        T_world_object.rotation
+    place = pin.SE3(R, scene.goal_pos_m + np.array([0.0, 0.0, PLACE_DROP_M])) * T_object_tcp
+    return raised(place, CLEARANCE_M), place
+
+
+def yaw_error(R_world_object: np.ndarray, R_world_object_goal: np.ndarray, period_rad: float) -> float:
+    """Yaw error (rad) of a placed object against its goal orientation, modulo its symmetry (0 if yaw is not
+    defined for it)."""
+    if period_rad <= 0.0:
+        return 0.0
+    d = float(wrap_to_pi(object_yaw(R_world_object) - object_yaw(R_world_object_goal)))
+    k = 2.0 * math.pi / period_rad
+    return float(wrap_to_pi(k * d) / k)
+
+
+def top_down_face_grasps(scene: SceneConfig, T_world_object: pin.SE3, pad_half_height_m: float
+                         ) -> list[tuple[pin.SE3, float]]:
+    """Top-down grasps across the faces of a box resting on a face: ``[(T_object_tcp, width_m)]``.
+
+    The tcp points straight down at the object's centre, its pads across a pair of vertical faces (four
+    turns), raised if needed so that the finger tips stay ``TABLE_GAP_M`` above the table.
+    """
+    obj = scene.object
+    size = np.array(obj.size_m)
+    R = T_world_object.rotation
+    up = int(np.argmax(np.abs(R[2])))  # the object's axis that points up (it may rest on any face)
+    centre_z = float(T_world_object.translation[2])
+    above = max(0.0, scene.table_height_m + pad_half_height_m + TABLE_GAP_M - centre_z)
+    side = (up + 1) % 3
+    psi = object_yaw(R)
+    out = []
+    for k in range(4):
+        across = side if k % 2 == 0 else 3 - up - side  # the horizontal axis the pads close along
+        R_world_tcp = top_down(psi + k * math.pi / 2 - math.pi / 2)  # tcp y along that axis
+        T_world_tcp = pin.SE3(R_world_tcp, T_world_object.translation + np.array([0.0, 0.0, above]))
+        out.append((T_world_object.actInv(T_world_tcp), float(size[across])))
+    return out
+
+
+__all__ = [
+    "CLEARANCE_M",
+    "PLACE_DROP_M",
+    "TABLE_GAP_M",
+    "GraspTargets",
+    "backed_off",
+    "grasp_targets",
+    "object_yaw",
+    "place_orientation",
+    "place_targets",
+    "raised",
+    "symmetric_turns",
+    "top_down",
+    "top_down_face_grasps",
+    "wrist_reference",
+    "yaw_error",
+]

@@ -4,13 +4,13 @@ A :class:`CollisionChecker` owns a private copy of the scene's ``MjModel`` (so t
 touched) in which every robot geom carries a safety margin: MuJoCo then reports a contact for any pair
 closer than the margin, and every reported contact that the checker's policy does not allow is a
 collision. It covers the robot against the table, floor and obstacles, robot self-collision (MuJoCo's
-parent-child filter excludes adjacent links), the gripper against the cube (unless allowed), and, while the
-cube is carried, the cube moving rigidly with the tcp.
+parent-child filter excludes adjacent links), the gripper against the object (unless allowed), and, while the
+object is carried, the object moving rigidly with the tcp.
 
-The checker's model is the scene compiled with one extra body: a copy of the cube welded to the gripper
-(``held_cube``), switched off unless the cube is carried. Carrying is then pure forward kinematics: one
+The checker's model is the scene compiled with one extra body: a copy of the object welded to the gripper
+(``held_object``), switched off unless the object is carried. Carrying is then pure forward kinematics: one
 ``mj_kinematics`` and one ``mj_collision`` per configuration, with no pose arithmetic in Python, so a check
-with the cube in hand costs the same as one without.
+with the object in hand costs the same as one without.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ import numpy as np
 import pinocchio as pin
 
 from pickplace.errors import CollisionError
-from pickplace.robot.model import Handles, Robot, quiet_attach, scene_spec
+from pickplace.robot.model import Handles, Robot, add_object_geoms, quiet_attach, scene_spec
 from pickplace.world.config import SceneConfig, check_range
 
 log = logging.getLogger(__name__)
@@ -36,22 +36,22 @@ class CollisionPolicy:
     """What the checker counts as a collision.
 
     Attributes:
-        margin_m: Safety margin (m): the robot (and the carried cube) closer than this to the table, the
+        margin_m: Safety margin (m): the robot (and the carried object) closer than this to the table, the
             floor or an obstacle counts as colliding; 0 means actual contact. Self-collision is checked at
             actual contact.
-        cube_held: The cube is carried: it moves rigidly with the tcp (see ``T_tcp_cube``) and its contacts
+        object_held: The object is carried: it moves rigidly with the tcp (see ``T_tcp_object``) and its contacts
             with the table, the floor, obstacles and the arm are collisions.
-        allow_gripper_cube: Contacts between the gripper (pads, fingers) and the cube are allowed
+        allow_gripper_object: Contacts between the gripper (pads, fingers) and the object are allowed
             (grasping, carrying, releasing).
-        allow_cube_table: Contacts between the cube and the table are allowed (the cube resting, or being
+        allow_object_table: Contacts between the object and the table are allowed (the object resting, or being
             set down).
         finger_m: Finger opening used for the check (m of slide travel; 0 = fully open).
     """
 
     margin_m: float = 0.01
-    cube_held: bool = False
-    allow_gripper_cube: bool = False
-    allow_cube_table: bool = True
+    object_held: bool = False
+    allow_gripper_object: bool = False
+    allow_object_table: bool = True
     finger_m: float = 0.0
 
     def __post_init__(self) -> None:
@@ -65,9 +65,9 @@ class CollisionChecker:
     Args:
         robot: The models.
         policy: What counts as a collision.
-        world: A simulation state giving the pose of everything that is not the arm (where the cube rests,
+        world: A simulation state giving the pose of everything that is not the arm (where the object rests,
             mocap bodies); default: the scene's initial state. See :meth:`set_world`.
-        T_tcp_cube: Pose of the cube in the tcp frame while it is held (default: centred, aligned).
+        T_tcp_object: Pose of the object in the tcp frame while it is held (default: centred, aligned).
     """
 
     def __init__(
@@ -75,27 +75,27 @@ class CollisionChecker:
         robot: Robot,
         policy: CollisionPolicy | None = None,
         world: mujoco.MjData | None = None,
-        T_tcp_cube: pin.SE3 | None = None,
+        T_tcp_object: pin.SE3 | None = None,
     ) -> None:
         self.robot = robot
         self.policy = policy or CollisionPolicy()
         self._m = copy.deepcopy(_checker_model(robot.scene))
         self._d = mujoco.MjData(self._m)
         h = self._handles = Handles.resolve(self._m)
-        self._held_body = mujoco.mj_name2id(self._m, mujoco.mjtObj.mjOBJ_BODY, HELD_CUBE)
-        self._held_geom = mujoco.mj_name2id(self._m, mujoco.mjtObj.mjOBJ_GEOM, HELD_CUBE)
+        self._held_body = mujoco.mj_name2id(self._m, mujoco.mjtObj.mjOBJ_BODY, HELD_PREFIX + "object")
+        self._held_geoms = frozenset(int(g) for g in np.flatnonzero(self._m.geom_bodyid == self._held_body))
         self._arm = slice(int(h.arm_qpos[0]), int(h.arm_qpos[0]) + 6)
         assert np.array_equal(h.arm_qpos, np.arange(self._arm.start, self._arm.stop)), "arm qpos must be contiguous"
         mujoco.mj_resetDataKeyframe(self._m, self._d, 0)
         self._d.qpos[h.finger_qpos] = self.policy.finger_m
         if world is not None:
             self.set_world(world)
-        self._weld_held_cube(T_tcp_cube or pin.SE3.Identity())
+        self._weld_held_object(T_tcp_object or pin.SE3.Identity())
         self.checks = 0
         self._configure_filters()
 
     def set_world(self, d: mujoco.MjData) -> None:
-        """Take the pose of everything that is not the arm from a simulation state (the cube, mocap bodies).
+        """Take the pose of everything that is not the arm from a simulation state (the object, mocap bodies).
 
         The arm joints in ``d`` are ignored (each check sets them); the fingers keep the policy's opening.
         """
@@ -107,15 +107,15 @@ class CollisionChecker:
         self._d.mocap_pos[:] = d.mocap_pos
         self._d.mocap_quat[:] = d.mocap_quat
 
-    def _weld_held_cube(self, T_tcp_cube: pin.SE3) -> None:
-        """Pose the held cube's body in its parent (the body carrying the tcp site): T_tcp_site * T_tcp_cube."""
+    def _weld_held_object(self, T_tcp_object: pin.SE3) -> None:
+        """Pose the held object's body in its parent (the body carrying the tcp site): T_tcp_site * T_tcp_object."""
         m, tcp = self._m, self._handles.tcp_site
         R_parent_tcp = np.empty(9)
         mujoco.mju_quat2Mat(R_parent_tcp, m.site_quat[tcp])
         R_parent_tcp = R_parent_tcp.reshape(3, 3)
         quat = np.empty(4)
-        mujoco.mju_mat2Quat(quat, (R_parent_tcp @ T_tcp_cube.rotation).ravel())
-        m.body_pos[self._held_body] = m.site_pos[tcp] + R_parent_tcp @ T_tcp_cube.translation
+        mujoco.mju_mat2Quat(quat, (R_parent_tcp @ T_tcp_object.rotation).ravel())
+        m.body_pos[self._held_body] = m.site_pos[tcp] + R_parent_tcp @ T_tcp_object.translation
         m.body_quat[self._held_body] = quat
 
     def _configure_filters(self) -> None:
@@ -126,37 +126,37 @@ class CollisionChecker:
         configuration is valid exactly when ``ncon == 0`` (no per-contact filtering in Python).
         """
         m, h, policy = self._m, self._handles, self.policy
-        OFF, ARM, GRIP, TABLE, ENV, CUBE = 0, 1, 2, 4, 8, 16
+        OFF, ARM, GRIP, TABLE, ENV, OBJ = 0, 1, 2, 4, 8, 16
         table = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "table")
         cls = np.full(m.ngeom, ENV)
         cls[np.isin(m.geom_bodyid, list(h.robot_bodies))] = ARM
         cls[np.isin(m.geom_bodyid, list(h.gripper_bodies))] = GRIP
         cls[m.geom_bodyid == table] = TABLE
-        # Exactly one of the two cubes takes part: the one resting in the world, or the one in the gripper.
-        cls[m.geom_bodyid == h.cube_body] = OFF if policy.cube_held else CUBE
-        cls[m.geom_bodyid == self._held_body] = CUBE if policy.cube_held else OFF
-        pairs = {(ARM, ARM), (ARM, GRIP), (ARM, TABLE), (ARM, ENV), (ARM, CUBE), (GRIP, GRIP), (GRIP, TABLE),
+        # Exactly one of the two objects takes part: the one resting in the world, or the one in the gripper.
+        cls[m.geom_bodyid == h.object_body] = OFF if policy.object_held else OBJ
+        cls[m.geom_bodyid == self._held_body] = OBJ if policy.object_held else OFF
+        pairs = {(ARM, ARM), (ARM, GRIP), (ARM, TABLE), (ARM, ENV), (ARM, OBJ), (GRIP, GRIP), (GRIP, TABLE),
                  (GRIP, ENV)}
-        if not (policy.allow_gripper_cube or policy.cube_held):
-            pairs.add((GRIP, CUBE))
-        if policy.cube_held:
-            pairs.add((CUBE, ENV))
-            if not policy.allow_cube_table:
-                pairs.add((CUBE, TABLE))
-        affinity = {c: 0 for c in (OFF, ARM, GRIP, TABLE, ENV, CUBE)}
+        if not (policy.allow_gripper_object or policy.object_held):
+            pairs.add((GRIP, OBJ))
+        if policy.object_held:
+            pairs.add((OBJ, ENV))
+            if not policy.allow_object_table:
+                pairs.add((OBJ, TABLE))
+        affinity = {c: 0 for c in (OFF, ARM, GRIP, TABLE, ENV, OBJ)}
         for a, b in pairs:
             affinity[a] |= b
             affinity[b] |= a
         active = (m.geom_contype | m.geom_conaffinity) != 0  # visual geoms stay out
         m.geom_contype[active] = cls[active]
         m.geom_conaffinity[active] = [affinity[c] for c in cls[active]]
-        # MuJoCo uses the larger margin of a pair: margins on the environment (and on the carried cube) keep
+        # MuJoCo uses the larger margin of a pair: margins on the environment (and on the carried object) keep
         # the robot clear of them, while robot self-collision is checked at actual contact (adjacent housings
         # of the UR5e sit closer than any useful margin).
         m.geom_margin[:] = 0.0
         m.geom_margin[(cls == TABLE) | (cls == ENV)] = policy.margin_m
-        if policy.cube_held:
-            m.geom_margin[cls == CUBE] = policy.margin_m
+        if policy.object_held:
+            m.geom_margin[cls == OBJ] = policy.margin_m
         # The broad phase works on bodies: it filters body pairs by the OR of their geoms' bits and pads each
         # body's bounds by its largest geom margin, both computed at compile time, so they are redone here.
         for b in range(m.nbody):
@@ -203,10 +203,9 @@ class CollisionChecker:
         return sorted(pairs)  # type: ignore[arg-type]
 
     def _geom_name(self, g: int) -> str:
-        """A geom's name as the user knows it (the carried cube is reported as ``cube``)."""
-        if g == self._held_geom:
-            return "cube"
-        return self._m.geom(g).name or f"geom{g}"
+        """A geom's name as the user knows it (the carried object's geoms by their own names)."""
+        name = self._m.geom(g).name or f"geom{g}"
+        return name.removeprefix(HELD_PREFIX) if g in self._held_geoms else name
 
     def require_valid(self, q: np.ndarray, what: str) -> None:
         """Raise :class:`CollisionError` naming the geoms if ``q`` is in collision."""
@@ -215,22 +214,20 @@ class CollisionChecker:
             raise CollisionError(what, pairs)
 
 
-HELD_CUBE = "held_cube"
-"""Name of the checker model's body (and geom) that is the cube while it is carried."""
+HELD_PREFIX = "held_"
+"""Prefix of the checker model's geoms that are the object while it is carried (in the body ``held_object``)."""
 
 
 @functools.lru_cache(maxsize=16)
 def _checker_model(scene: SceneConfig) -> mujoco.MjModel:
-    """The scene compiled with a copy of the cube welded to the tcp's body (compiled once per scene).
+    """The scene compiled with a copy of the object welded to the tcp's body (compiled once per scene).
 
     Nothing else changes: the qpos layout is the simulation's, so world states carry over. Each checker
-    works on its own deep copy (it edits the collision bits, the margins and the held cube's pose).
+    works on its own deep copy (it edits the collision bits, the margins and the held object's pose).
     """
     spec = scene_spec(scene)
-    h = scene.cube_size_m / 2
     tcp_body = spec.site("tcp").parent
-    held = tcp_body.add_body(name=HELD_CUBE)
-    held.add_geom(name=HELD_CUBE, type=mujoco.mjtGeom.mjGEOM_BOX, size=[h, h, h], mass=scene.cube_mass_kg,
-                  group=5)  # its collision bits are set per checker (_configure_filters)
+    held = tcp_body.add_body(name=HELD_PREFIX + "object")
+    add_object_geoms(spec, held, scene.object, contact=False, prefix=HELD_PREFIX)
     with quiet_attach():
         return spec.compile()

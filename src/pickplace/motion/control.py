@@ -52,7 +52,9 @@ import pinocchio as pin
 from pickplace.errors import ConfigError, ControlError
 from pickplace.motion.timing import Trajectory
 from pickplace.robot.model import Robot
-from pickplace.world.config import SceneConfig, check_range, check_vector
+from pickplace.world.config import check_range, check_vector
+from pickplace.world.mass import mass_properties
+from pickplace.world.objects import ObjectConfig
 
 log = logging.getLogger(__name__)
 
@@ -184,25 +186,42 @@ class Payload:
     Attributes:
         mass_kg: Mass (kg).
         com_tcp_m: Centre of mass in the tcp frame (3,) (m).
-        inertia_kg_m2: Principal moments of inertia about the centre of mass, along the tcp axes (3,) (kg m^2).
+        inertia_kg_m2: Inertia about the centre of mass, tcp axes (kg m^2): three principal moments along the
+            tcp axes, or six values ``(xx, yy, zz, xy, xz, yz)`` of the tensor.
     """
 
     mass_kg: float
     com_tcp_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    inertia_kg_m2: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    inertia_kg_m2: tuple[float, ...] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
         set_(self, "mass_kg", check_range("payload.mass_kg", self.mass_kg, 0.0, 5.0, unit="kg"))
         set_(self, "com_tcp_m", check_vector("payload.com_tcp_m", self.com_tcp_m, 3, -0.5, 0.5, unit="m"))
-        set_(self, "inertia_kg_m2", check_vector("payload.inertia_kg_m2", self.inertia_kg_m2, 3, 0.0, 1.0,
-                                                 unit="kg m^2"))
+        n = len(self.inertia_kg_m2) if isinstance(self.inertia_kg_m2, (tuple, list)) else 0
+        set_(self, "inertia_kg_m2", check_vector("payload.inertia_kg_m2", self.inertia_kg_m2, 6 if n == 6 else 3,
+                                                 -1.0, 1.0, unit="kg m^2"))
+
+    @property
+    def inertia_tensor(self) -> np.ndarray:
+        """The inertia (3, 3) about the centre of mass, tcp axes (kg m^2)."""
+        i = self.inertia_kg_m2
+        if len(i) == 3:
+            return np.diag(i)
+        xx, yy, zz, xy, xz, yz = i
+        return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
 
     @classmethod
-    def cube(cls, scene: SceneConfig, com_tcp_m: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> Payload:
-        """The scene's cube (mass, solid-cube inertia ``m s^2 / 6``) with its centre at ``com_tcp_m`` (m)."""
-        i = scene.cube_mass_kg * scene.cube_size_m**2 / 6.0
-        return cls(scene.cube_mass_kg, com_tcp_m, (i, i, i))
+    def held(cls, obj: ObjectConfig, T_tcp_object: pin.SE3, mass_kg: float | None = None) -> Payload:
+        """The object as the robot believes it (:func:`~pickplace.world.mass.mass_properties`), held with its
+        frame at ``T_tcp_object``; ``mass_kg`` replaces the believed mass (e.g. after weighing it)."""
+        props = mass_properties(obj)
+        scale = 1.0 if mass_kg is None else mass_kg / props.mass_kg
+        R = T_tcp_object.rotation
+        com = T_tcp_object.act(props.com_m)
+        inertia = scale * (R @ props.inertia_kg_m2 @ R.T)
+        return cls(props.mass_kg * scale, (float(com[0]), float(com[1]), float(com[2])),
+                   tuple(float(inertia[i, j]) for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))))
 
 
 # --------------------------------------------------------------------------- #
@@ -276,7 +295,7 @@ def arm_model(robot: Robot, payload: Payload | None = None) -> ArmModel:
     model.armature = armature
     if payload is not None and payload.mass_kg > 0.0:
         frame = model.frames[robot.pin_tcp_frame]
-        inertia = pin.Inertia(payload.mass_kg, np.array(payload.com_tcp_m), np.diag(payload.inertia_kg_m2))
+        inertia = pin.Inertia(payload.mass_kg, np.array(payload.com_tcp_m), payload.inertia_tensor)
         model.inertias[frame.parentJoint] = model.inertias[frame.parentJoint] + frame.placement.act(inertia)
     nv = model.nv
     return ArmModel(model=model, data=model.createData(), tcp_frame=robot.pin_tcp_frame, damping=damping,
@@ -498,15 +517,17 @@ class TrackingRecord:
 
 @dataclass(frozen=True, eq=False)
 class CartesianRecord:
-    """What :func:`move_vertical` measured.
+    """What :func:`move_linear` (and :func:`move_vertical`) measured.
 
     Errors are measured at every control step (the state before the step) and at the end, against the
-    reference: the minimum-jerk height, the start (x, y) and the start orientation.
+    reference: the minimum-jerk position along the straight line and the start orientation.
 
     Attributes:
-        reached: The tcp came within the height tolerance at below the settle speed after the profile.
+        reached: The tcp came within the tolerance of its target at below the settle speed after the profile.
         final_height_error_m: Tcp height minus target height at the end (m), signed.
-        lateral_drift_max_m: Largest horizontal distance of the tcp from its start (x, y) (m).
+        final_error_m: Distance of the tcp from its target at the end (m).
+        lateral_drift_max_m: Largest distance of the tcp from the move's straight line (m) (for a vertical
+            move: the horizontal drift from its start).
         orientation_error_max_rad: Largest rotation of the tcp away from its start orientation (rad), which is
             the orientation reference.
         position_error_max_m: Largest distance of the tcp from its reference position (m).
@@ -524,6 +545,7 @@ class CartesianRecord:
 
     reached: bool
     final_height_error_m: float
+    final_error_m: float
     lateral_drift_max_m: float
     orientation_error_max_rad: float
     position_error_max_m: float
@@ -830,18 +852,52 @@ def move_vertical(
     duration_s: float | None = None,
     raise_on_timeout: bool = True,
 ) -> CartesianRecord:
-    """Move the tcp vertically to ``target_z_m`` with Cartesian impedance, holding x, y and orientation.
+    """Move the tcp vertically to ``target_z_m`` (m), holding x, y and the orientation: :func:`move_linear` to
+    the point straight above or below the tcp's position now.
 
-    The height follows a minimum-jerk profile from the current height (duration from
-    :meth:`ControlConfig.vertical_duration_s` unless given); x, y and the orientation are regulated to their
-    values at the start; the posture at the start is regulated in the null space. The move ends once the
+    Raises:
+        ConfigError: ``target_z_m`` or ``duration_s`` is invalid.
+        ControlError: timeout (if ``raise_on_timeout``), or a tcp error beyond ``config.max_tcp_error_m``.
+    """
+    target_z_m = check_range("move_vertical.target_z_m", target_z_m, -2.0, 2.0, unit="m")
+    start = _tcp_now(robot, data)
+    return move_linear(robot, data, np.array([start[0], start[1], target_z_m]), config, payload=payload, hook=hook,
+                       noise=noise, duration_s=duration_s, raise_on_timeout=raise_on_timeout)
+
+
+def _tcp_now(robot: Robot, data: mujoco.MjData) -> np.ndarray:
+    """The tcp position (3,) (m) of ``data``'s arm configuration, by Pinocchio's kinematics."""
+    h = robot.handles
+    q = robot.pin_q(data.qpos[h.arm_qpos], float(data.qpos[h.finger_qpos[0]]))
+    pdata = robot.pin.createData()
+    pin.framesForwardKinematics(robot.pin, pdata, q)
+    return pdata.oMf[robot.pin_tcp_frame].translation.copy()
+
+
+def move_linear(
+    robot: Robot,
+    data: mujoco.MjData,
+    target_m: np.ndarray,
+    config: ControlConfig,
+    *,
+    payload: Payload | None = None,
+    hook: Hook | None = None,
+    noise: JointNoise | None = None,
+    duration_s: float | None = None,
+    raise_on_timeout: bool = True,
+) -> CartesianRecord:
+    """Move the tcp along a straight line to ``target_m`` with Cartesian impedance, holding its orientation.
+
+    The position follows a minimum-jerk profile along the segment from the current position (duration from
+    :meth:`ControlConfig.vertical_duration_s` for its length unless given); the orientation is regulated to
+    the one at the start; the posture at the start is regulated in the null space. The move ends once the
     profile is over and the tcp is within ``config.height_tolerance_m`` of the target, moving slower than
     ``config.settle_speed_m_s``; it times out ``config.settle_timeout_s`` after the profile's end.
 
     Args:
         robot: The models.
         data: MuJoCo data, advanced in place.
-        target_z_m: Target tcp height in the world (m).
+        target_m: Target tcp position (3,) in the world (m).
         config: Gains and motion parameters.
         payload: An object held at the tcp.
         hook: Called with ``data`` after every simulation step; may raise to abort.
@@ -853,10 +909,10 @@ def move_vertical(
         The :class:`CartesianRecord`.
 
     Raises:
-        ConfigError: ``target_z_m`` or ``duration_s`` is invalid.
+        ConfigError: ``target_m`` or ``duration_s`` is invalid.
         ControlError: timeout (if ``raise_on_timeout``), or a tcp error beyond ``config.max_tcp_error_m``.
     """
-    target_z_m = check_range("move_vertical.target_z_m", target_z_m, -2.0, 2.0, unit="m")
+    target = np.array(check_vector("move_linear.target_m", target_m, 3, -2.0, 2.0, unit="m"))
     m, h = robot.mj, robot.handles
     arm = arm_model(robot, payload)
     dt = arm.timestep_s
@@ -869,19 +925,20 @@ def move_vertical(
     pin.framesForwardKinematics(arm.model, arm.data, qp0)
     T0 = pin.SE3(arm.data.oMf[arm.tcp_frame])
     R_ref, p0 = T0.rotation.copy(), T0.translation.copy()
-    dz = target_z_m - p0[2]
-    T = (check_range("move_vertical.duration_s", duration_s, dt, 60.0, unit="s") if duration_s is not None
-         else max(config.vertical_duration_s(dz), dt))
+    delta = target - p0
+    length = float(np.linalg.norm(delta))
+    direction = delta / length if length > 0.0 else np.array([0.0, 0.0, 1.0])
+    T = (check_range("move_linear.duration_s", duration_s, dt, 60.0, unit="s") if duration_s is not None
+         else max(config.vertical_duration_s(length), dt))
     n_profile = math.ceil(T / dt - 1e-9)
     n_max = n_profile + round(config.settle_timeout_s / dt)
     s, _, _ = min_jerk(np.arange(-1, n_max + 1) * dt, T)
-    z_grid = p0[2] + dz * s
-    z_ref, zd_ref, zdd_ref = (a[:, 0] for a in _grid_reference(z_grid[:, None], dt))
+    p_grid = p0 + np.outer(s, delta)
+    p_refs, v_refs, a_refs = _grid_reference(p_grid, dt)
 
     stiffness = config.cartesian_stiffness
     zeta, post_kp, post_kd = config.cartesian_damping_ratio, config.posture_kp_nm_rad, config.posture_kd
     limits = arm.torque_limits_nm
-    p_ref, v_ref, a_ref = p0.copy(), np.zeros(3), np.zeros(3)
     z_log = np.empty(n_max + 1)
     pos_err_log = np.empty(n_max + 1)
     q_log = np.empty((n_max + 1, N_ARM))
@@ -890,40 +947,42 @@ def move_vertical(
     drift = rot_err = 0.0
     reached = False
 
-    def record(steps: int, z_now: float) -> CartesianRecord:
+    def record(steps: int, p_now: np.ndarray) -> CartesianRecord:
         pos = pos_err_log[: steps + 1]
         return CartesianRecord(
-            reached=reached, final_height_error_m=z_now - target_z_m, lateral_drift_max_m=drift,
+            reached=reached, final_height_error_m=float(p_now[2] - target[2]),
+            final_error_m=float(np.linalg.norm(p_now - target)), lateral_drift_max_m=drift,
             orientation_error_max_rad=rot_err, position_error_max_m=float(pos.max()),
             position_error_rms_m=float(np.sqrt(np.mean(pos**2))), saturation_events=saturated,
-            duration_s=steps * dt, steps=steps,
-            profile_duration_s=float(T), t=np.arange(steps + 1) * dt, z=z_log[: steps + 1].copy(),
-            z_ref=z_ref[: steps + 1].copy(), q=q_log[: steps + 1].copy(), tau=tau_log[:steps].copy())
+            duration_s=steps * dt, steps=steps, profile_duration_s=float(T), t=np.arange(steps + 1) * dt,
+            z=z_log[: steps + 1].copy(), z_ref=p_refs[: steps + 1, 2].copy(), q=q_log[: steps + 1].copy(),
+            tau=tau_log[:steps].copy())
 
     k = 0
-    x0, y0 = float(p0[0]), float(p0[1])
-    tol_z, tol_v, tol_e = config.height_tolerance_m, config.settle_speed_m_s, config.max_tcp_error_m
+    p = p0.copy()
+    tol_p, tol_v, tol_e = config.height_tolerance_m, config.settle_speed_m_s, config.max_tcp_error_m
     for k in range(n_max + 1):
         q = qpos[arm_q] if noise is None else qpos[arm_q] + noise.sample()
-        p_ref[2], v_ref[2], a_ref[2] = z_ref[k], zd_ref[k], zdd_ref[k]
         try:
-            cmd = cartesian_impedance(arm, q, qvel[arm_v], p_ref, v_ref, a_ref, R_ref, stiffness, zeta, q0,
-                                      post_kp, post_kd, finger_m=qpos[finger])
+            cmd = cartesian_impedance(arm, q, qvel[arm_v], p_refs[k], v_refs[k], a_refs[k], R_ref, stiffness, zeta,
+                                      q0, post_kp, post_kd, finger_m=qpos[finger])
         except np.linalg.LinAlgError as exc:  # J M^-1 J^T singular: the arm is at a kinematic singularity
-            raise ControlError("move_vertical", f"singular tcp Jacobian at q = {np.round(q, 4).tolist()} rad",
-                               record(k - 1, float(z_log[k - 1])) if k else None) from exc
-        x, y, z = cmd.position.tolist()
+            raise ControlError("move_linear", f"singular tcp Jacobian at q = {np.round(q, 4).tolist()} rad",
+                               record(k - 1, p) if k else None) from exc
+        p = cmd.position
         ex, ey, ez, rx, ry, rz = cmd.error.tolist()
-        z_log[k] = z
+        z_log[k] = p[2]
         q_log[k] = q
-        drift = max(drift, math.hypot(x - x0, y - y0))
+        off = p - p0
+        along = float(off @ direction)
+        drift = max(drift, float(np.linalg.norm(off - along * direction)))  # distance from the line
         rot_err = max(rot_err, math.sqrt(rx * rx + ry * ry + rz * rz))
         pos_err = math.sqrt(ex * ex + ey * ey + ez * ez)
         pos_err_log[k] = pos_err
         if not pos_err <= tol_e:  # also catches NaN
-            raise ControlError("move_vertical", f"tcp error {pos_err * 1e3:.3g} mm exceeds {tol_e * 1e3:.3g} mm "
-                                                f"at t = {k * dt:.3f} s", record(k, z))
-        if k >= n_profile and abs(z - target_z_m) <= tol_z:
+            raise ControlError("move_linear", f"tcp error {pos_err * 1e3:.3g} mm exceeds {tol_e * 1e3:.3g} mm "
+                                              f"at t = {k * dt:.3f} s", record(k, p))
+        if k >= n_profile and float(np.linalg.norm(p - target)) <= tol_p:
             vx, vy, vz = cmd.twist[:3].tolist()
             if math.sqrt(vx * vx + vy * vy + vz * vz) <= tol_v:
                 reached = True
@@ -938,16 +997,16 @@ def move_vertical(
         mujoco.mj_step(m, data)
         if hook is not None:
             hook(data)
-    rec = record(k, float(z_log[k]))
-    log.debug("move_vertical to %.4f m: reached %s after %.3f s (profile %.3f s), height error %.3g mm, "
-              "drift %.3g mm, orientation %.3g rad, %d saturated steps", target_z_m, rec.reached, rec.duration_s,
-              T, rec.final_height_error_m * 1e3, rec.lateral_drift_max_m * 1e3, rec.orientation_error_max_rad,
+    rec = record(k, p)
+    log.debug("move_linear to %s m: reached %s after %.3f s (profile %.3f s), error %.3g mm, drift %.3g mm, "
+              "orientation %.3g rad, %d saturated steps", np.round(target, 4).tolist(), rec.reached, rec.duration_s,
+              T, rec.final_error_m * 1e3, rec.lateral_drift_max_m * 1e3, rec.orientation_error_max_rad,
               rec.saturation_events)
     if not reached and raise_on_timeout:
-        raise ControlError("move_vertical", f"tcp not settled at {target_z_m:.4f} m within "
-                                            f"{config.settle_timeout_s:g} s after the {T:.3f} s profile: height "
-                                            f"error {rec.final_height_error_m * 1e3:.3g} mm (tolerance "
-                                            f"{config.height_tolerance_m * 1e3:.3g} mm)", rec)
+        raise ControlError("move_linear", f"tcp not settled at {np.round(target, 4).tolist()} m within "
+                                          f"{config.settle_timeout_s:g} s after the {T:.3f} s profile: "
+                                          f"{rec.final_error_m * 1e3:.3g} mm from it (tolerance "
+                                          f"{config.height_tolerance_m * 1e3:.3g} mm)", rec)
     return rec
 
 
@@ -967,6 +1026,7 @@ __all__ = [
     "implicit_damping",
     "joint_impedance",
     "min_jerk",
+    "move_linear",
     "move_vertical",
     "saturate",
     "stop",

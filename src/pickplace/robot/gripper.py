@@ -34,6 +34,12 @@ class GripperGeometry:
         pad_half_height_m: Half the pads' height along the tcp z axis.
         travel_m: Finger slide travel (0 = open).
         tcp_offset_m: Distance from ``tool0`` to the tcp along the flange axis.
+        pad_box_m: The left (+y) pad's collision box, fully open: centre (x, y, z) then half extents (x, y, z)
+            in the tcp frame; the right pad is its mirror image in y.
+        finger_box_m: The left finger's collision box, fully open, as ``pad_box_m`` (the box bounding its
+            collision geoms other than the pad).
+        palm_boxes_m: Boxes bounding each collision geom fixed to the gripper's base (palm, coupling), as
+            ``pad_box_m``; these do not move with the fingers.
     """
 
     open_inner_face_y_m: float
@@ -42,6 +48,9 @@ class GripperGeometry:
     pad_half_height_m: float
     travel_m: float
     tcp_offset_m: float
+    pad_box_m: tuple[float, ...]
+    finger_box_m: tuple[float, ...]
+    palm_boxes_m: tuple[tuple[float, ...], ...]
 
     @classmethod
     def measure(cls, robot: Robot) -> GripperGeometry:
@@ -58,9 +67,34 @@ class GripperGeometry:
             local = R.T @ (d.geom_xpos[pad] - d.site_xpos[h.tcp_site])
             return float(abs(local[1]) - m.geom_size[pad, 1])
 
+        def tcp_box(geoms: list[int]) -> tuple[float, ...]:
+            # the box, aligned with the tcp frame, bounding these collision geoms at the current pose
+            R = d.site_xmat[h.tcp_site].reshape(3, 3)
+            lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+            for g in geoms:
+                size, kind = m.geom_size[g], int(m.geom_type[g])
+                if kind == mujoco.mjtGeom.mjGEOM_BOX:
+                    half = size.copy()
+                elif kind in (mujoco.mjtGeom.mjGEOM_CYLINDER, mujoco.mjtGeom.mjGEOM_CAPSULE):
+                    tip = size[1] + (size[0] if kind == mujoco.mjtGeom.mjGEOM_CAPSULE else 0.0)
+                    half = np.array([size[0], size[0], tip])
+                else:  # sphere, ellipsoid, mesh: the bounding radius
+                    half = np.full(3, float(m.geom_rbound[g]))
+                centre = R.T @ (d.geom_xpos[g] - d.site_xpos[h.tcp_site])
+                ext = np.abs(R.T @ d.geom_xmat[g].reshape(3, 3)) @ half
+                lo, hi = np.minimum(lo, centre - ext), np.maximum(hi, centre + ext)
+            return tuple(float(v) for v in (*(lo + hi) / 2, *(hi - lo) / 2))
+
+        def colliding(body: int) -> list[int]:
+            return [g for g in range(m.ngeom) if int(m.geom_bodyid[g]) == body and
+                    (m.geom_contype[g] or m.geom_conaffinity[g])]
+
         mujoco.mj_kinematics(m, d)
         tcp_offset = float(np.linalg.norm(d.site_xpos[h.tcp_site] - d.xpos[h.tool0_body]))
         open_face = inner_face(0.0)
+        finger_geoms = [g for g in colliding(int(m.geom_bodyid[pad])) if g != pad]
+        pad_box, finger_box = tcp_box([pad]), tcp_box(finger_geoms)
+        palm_boxes = tuple(tcp_box([g]) for g in colliding(int(m.site_bodyid[h.tcp_site])))
         return cls(
             open_inner_face_y_m=open_face,
             closed_inner_face_y_m=inner_face(travel),
@@ -68,11 +102,14 @@ class GripperGeometry:
             pad_half_height_m=float(m.geom_size[pad, 2]),
             travel_m=travel,
             tcp_offset_m=tcp_offset,
+            pad_box_m=pad_box,
+            finger_box_m=finger_box,
+            palm_boxes_m=palm_boxes,
         )
 
-    def contact_travel_m(self, cube_size_m: float) -> float:
-        """Finger travel (m) at which the pads touch a cube of this size."""
-        return self.open_inner_face_y_m - cube_size_m / 2
+    def contact_travel_m(self, width_m: float) -> float:
+        """Finger travel (m) at which the pads touch an object this wide across them (m)."""
+        return self.open_inner_face_y_m - width_m / 2
 
 
 def command(robot: Robot, d: mujoco.MjData, closed: bool) -> None:
@@ -91,56 +128,57 @@ def is_settled(robot: Robot, d: mujoco.MjData, speed_tol_m_s: float = 1e-3) -> b
     return bool(np.all(np.abs(d.qvel[robot.handles.finger_dof]) < speed_tol_m_s))
 
 
-def _pad_cube_contacts(robot: Robot, d: mujoco.MjData) -> Iterator[tuple[int, int, bool]]:
-    """``(contact index, pad 0 left / 1 right, whether the cube is geom2)`` of every pad-cube contact."""
+def _pad_object_contacts(robot: Robot, d: mujoco.MjData) -> Iterator[tuple[int, int, bool]]:
+    """``(contact index, pad 0 left / 1 right, whether the object is geom2)`` of every pad-object contact."""
     h = robot.handles
     left, right = int(h.pad_geoms[0]), int(h.pad_geoms[1])
+    obj = h.object_geom_set
     for i in range(d.ncon):
         c = d.contact[i]
         g1, g2 = int(c.geom1), int(c.geom2)
-        if h.cube_geom == g2 and g1 in (left, right):
+        if g2 in obj and g1 in (left, right):
             yield i, int(g1 == right), True
-        elif h.cube_geom == g1 and g2 in (left, right):
+        elif g1 in obj and g2 in (left, right):
             yield i, int(g2 == right), False
 
 
 def pad_load(robot: Robot, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-    """The pads' normal forces and their total force on the cube, as the simulation has them now.
+    """The pads' normal forces and their total force on the object, as the simulation has them now.
 
     Returns:
-        ``(normal, force_on_cube)``: the normal force of the cube on the left and right pad (2,) (N), and
-        the total force the pads exert on the cube (3,) in the world (N).
+        ``(normal, force_on_object)``: the normal force of the object on the left and right pad (2,) (N), and
+        the total force the pads exert on the object (3,) in the world (N).
     """
     normal, total, f = np.zeros(2), np.zeros(3), np.zeros(6)
-    for i, pad, cube_is_geom2 in _pad_cube_contacts(robot, d):
+    for i, pad, object_is_geom2 in _pad_object_contacts(robot, d):
         mujoco.mj_contactForce(robot.mj, d, i, f)
         normal[pad] += f[0]
         force_on_geom2 = d.contact[i].frame.reshape(3, 3).T @ f[:3]  # frame rows: normal, tangent 1, tangent 2
-        total += force_on_geom2 if cube_is_geom2 else -force_on_geom2
+        total += force_on_geom2 if object_is_geom2 else -force_on_geom2
     return normal, total
 
 
 def pad_forces(robot: Robot, d: mujoco.MjData) -> np.ndarray:
-    """Normal force (N) of the cube on the left and right pad, (2,)."""
+    """Normal force (N) of the object on the left and right pad, (2,)."""
     f, out = np.zeros(6), np.zeros(2)
-    for i, pad, _ in _pad_cube_contacts(robot, d):
+    for i, pad, _ in _pad_object_contacts(robot, d):
         mujoco.mj_contactForce(robot.mj, d, i, f)
         out[pad] += f[0]
     return out
 
 
 def pad_contacts(robot: Robot, d: mujoco.MjData) -> list[Contact]:
-    """The pad-cube contacts as the simulation has them now, for the force-closure test: one
-    :class:`~pickplace.grasping.closure.Contact` per MuJoCo contact point (world frame, normal pointing into the cube,
-    the contact's own friction coefficients)."""
+    """The pad-object contacts as the simulation has them now, for the force-closure test: one
+    :class:`~pickplace.world.contact.Contact` per MuJoCo contact point (world frame, normal pointing into the
+    object, the contact's own friction coefficients)."""
     contacts: list[Contact] = []
-    for i, _, cube_is_geom2 in _pad_cube_contacts(robot, d):
+    for i, _, object_is_geom2 in _pad_object_contacts(robot, d):
         c = d.contact[i]
-        normal = c.frame[:3] if cube_is_geom2 else -c.frame[:3]  # the frame's normal points from geom1 to geom2
+        normal = c.frame[:3] if object_is_geom2 else -c.frame[:3]  # the frame's normal points from geom1 to geom2
         contacts.append(Contact(c.pos.copy(), normal.copy(), float(c.friction[0]), float(c.friction[2])))
     return contacts
 
 
 def in_contact(robot: Robot, d: mujoco.MjData, min_force_n: float = 0.5) -> bool:
-    """True when both pads press on the cube with at least ``min_force_n``."""
+    """True when both pads press on the object with at least ``min_force_n``."""
     return bool(np.all(pad_forces(robot, d) >= min_force_n))

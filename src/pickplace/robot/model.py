@@ -9,6 +9,7 @@ second robot description to drift apart (``tests/test_model.py`` checks the two 
 from __future__ import annotations
 
 import contextlib
+import functools
 import logging
 import math
 import tempfile
@@ -23,6 +24,7 @@ import pinocchio as pin
 
 from pickplace.errors import ModelError
 from pickplace.world.config import SceneConfig
+from pickplace.world.objects import Geometry, ObjectConfig
 
 log = logging.getLogger(__name__)
 
@@ -86,7 +88,7 @@ INTRUDER_HALF_SIZE_M = (0.02, 0.10, 0.125)
 
 
 def scene_spec(scene: SceneConfig) -> mujoco.MjSpec:
-    """The full scene for MuJoCo: world, robot, table, cube, goal marker and optional obstacle.
+    """The full scene for MuJoCo: world, robot, table, object, goal marker and optional obstacle.
 
     Args:
         scene: What to build. Nothing in the XML files needs editing to vary it.
@@ -112,23 +114,22 @@ def scene_spec(scene: SceneConfig) -> mujoco.MjSpec:
         table.add_geom(name=f"table_leg_{i}", type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[0.025, leg_half, 0],
                        pos=[lx * (sx - 0.04), ly * (sy - 0.04), -top_half - leg_half], material="table")
 
-    # The cube: a free body. priority=1 makes its friction, condim and solver parameters the ones used for
-    # every contact it takes part in (pads, table), so SceneConfig.cube_friction is the contact friction.
-    h = scene.cube_size_m / 2
-    cube = spec.worldbody.add_body(name="cube", pos=scene.cube_start_pos_m.tolist(),
-                                   quat=_quat_yaw(scene.cube_yaw_rad))
-    cube.add_freejoint(name="cube_joint")
-    cube.add_geom(name="cube", type=mujoco.mjtGeom.mjGEOM_BOX, size=[h, h, h], mass=scene.cube_mass_kg,
-                  material="aluminium", condim=4, priority=1,
-                  friction=[scene.cube_friction, scene.cube_torsional_friction_m, 0.0001],
-                  solref=[0.004, 1.0], solimp=[0.95, 0.99, 0.001, 0.5, 2.0])
-    cube.add_site(name="cube_center", size=[0.003, 0, 0], rgba=[1, 0, 1, 1], group=4)
+    # The object: a free body. priority=1 makes its friction, condim and solver parameters the ones used for
+    # every contact it takes part in (pads, table), so ObjectConfig.friction is the contact friction.
+    obj = scene.object
+    body = spec.worldbody.add_body(name=OBJECT, pos=scene.start_pos_m.tolist(), quat=_quat_yaw(scene.start_yaw_rad))
+    body.add_freejoint(name=f"{OBJECT}_joint")
+    add_object_geoms(spec, body, obj, contact=True)
+    body.add_site(name=f"{OBJECT}_origin", size=[0.003, 0, 0], rgba=[1, 0, 1, 1], group=4)
 
-    # The goal: a translucent marker (no contacts) with the cube's footprint at the goal yaw.
+    # The goal: a translucent marker (no contacts) with the object's footprint (its bounds) at the goal yaw.
+    lo, hi = obj.geometry().bounds_m
     goal = spec.worldbody.add_body(name="goal", pos=[*scene.goal_xy_m, scene.table_height_m],
                                    quat=_quat_yaw(scene.goal_yaw_rad))
-    goal.add_geom(name="goal_marker", type=mujoco.mjtGeom.mjGEOM_BOX, size=[h, h, 0.0005],
-                  contype=0, conaffinity=0, group=1, material="goal")
+    goal.add_geom(name="goal_marker", type=mujoco.mjtGeom.mjGEOM_BOX,
+                  size=[(hi[0] - lo[0]) / 2, (hi[1] - lo[1]) / 2, 0.0005],
+                  pos=[(hi[0] + lo[0]) / 2, (hi[1] + lo[1]) / 2, 0.0], contype=0, conaffinity=0, group=1,
+                  material="goal")
     goal.add_site(name="goal", size=[0.003, 0, 0], rgba=[0, 1, 0, 1], group=4)
 
     # An obstacle parked far away (a mocap body): fault injection moves it into the robot's path mid-episode.
@@ -146,6 +147,68 @@ def scene_spec(scene: SceneConfig) -> mujoco.MjSpec:
     return spec
 
 
+#: Name of the object's body (its geoms are named after the object, see :func:`object_geom_names`).
+OBJECT = "object"
+
+
+def object_geom_names(obj: ObjectConfig) -> list[str]:
+    """Names of the object's geoms: its name for a single geom, ``NAME_i`` for several."""
+    n = len(obj.primitives()) or len(obj.geometry().hulls)
+    return [obj.name] if n == 1 else [f"{obj.name}_{i}" for i in range(n)]
+
+
+def add_object_geoms(spec: mujoco.MjSpec, body: mujoco.MjsBody, obj: ObjectConfig, *, contact: bool,
+                     prefix: str = "") -> None:
+    """Add the object's geoms to ``body``: its primitives, or the convex parts of its mesh.
+
+    The mass is shared by volume (uniform density), so MuJoCo computes the inertia from the shapes, unless
+    ``obj.inertia_kg_m2`` is given (then the body's inertial is set explicitly, at the centre of mass).
+
+    Args:
+        spec: The spec (mesh assets are added to it).
+        body: The body to add the geoms to.
+        obj: The object.
+        contact: Give the geoms the object's contact parameters (the simulated object); otherwise plain
+            geoms whose collision bits the caller sets (the collision checker's copy).
+        prefix: Prefix of the geom (and mesh) names.
+    """
+    geo = obj.geometry()
+    names = [prefix + n for n in object_geom_names(obj)]
+    condim = 6 if obj.rolling_friction_m > 0 else 4
+    extra: dict[str, object] = dict(
+        material="object", condim=condim, priority=1, solref=[0.004, 1.0], solimp=[0.95, 0.99, 0.001, 0.5, 2.0],
+        friction=[obj.friction, obj.torsional_friction_m, obj.rolling_friction_m]) if contact else dict(group=5)
+    if geo.primitives:
+        volumes = [p.volume_m3 for p in geo.primitives]
+        kinds = {"box": mujoco.mjtGeom.mjGEOM_BOX, "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER,
+                 "sphere": mujoco.mjtGeom.mjGEOM_SPHERE}
+        for name, part, vol in zip(names, geo.primitives, volumes, strict=True):
+            s = part.size_m
+            size = {"box": [s[0] / 2, s[1] / 2, s[2] / 2], "cylinder": [s[0], s[1] / 2, 0.0],
+                    "sphere": [s[0], 0.0, 0.0]}[part.kind]
+            body.add_geom(name=name, type=kinds[part.kind], size=size, pos=list(part.pos_m),
+                          quat=list(part.quat_wxyz), mass=obj.mass_kg * vol / sum(volumes), **extra)
+    else:
+        from scipy.spatial import ConvexHull
+
+        volumes = [float(ConvexHull(h).volume) for h in geo.hulls]
+        for name, hull, vol in zip(names, geo.hulls, volumes, strict=True):
+            spec.add_mesh(name=name, uservert=np.asarray(hull, dtype=float).ravel().tolist())
+            body.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name,
+                          mass=obj.mass_kg * vol / sum(volumes), **extra)
+    if obj.inertia_kg_m2 is not None:
+        body.explicitinertial = True
+        body.mass = obj.mass_kg
+        body.inertia = list(obj.inertia_kg_m2)
+        body.ipos = _centroid(geo, volumes).tolist()
+
+
+def _centroid(geo: Geometry, volumes: list[float]) -> np.ndarray:
+    """Centre of volume (3,) of the object's parts (m)."""
+    centres = [np.asarray(p.pos_m) for p in geo.primitives] or [np.mean(h, axis=0) for h in geo.hulls]
+    return np.average(np.array(centres), axis=0, weights=volumes)
+
+
 def scene_xml(scene: SceneConfig) -> str:
     """The scene as one self-contained MJCF string (e.g. to open in MuJoCo's own viewer)."""
     with quiet_attach():
@@ -153,8 +216,8 @@ def scene_xml(scene: SceneConfig) -> str:
 
 
 def obstacle_xy(scene: SceneConfig) -> tuple[float, float]:
-    """Centre (x, y) of the obstacle wall: midway between the cube's start and the goal, plus the offset (m)."""
-    a, b = np.asarray(scene.cube_start_xy_m), np.asarray(scene.goal_xy_m)
+    """Centre (x, y) of the obstacle wall: midway between the object's start and the goal, plus the offset (m)."""
+    a, b = np.asarray(scene.start_xy_m), np.asarray(scene.goal_xy_m)
     mid = (a + b) / 2 + np.asarray(scene.obstacle_offset_xy_m)
     return float(mid[0]), float(mid[1])
 
@@ -172,10 +235,10 @@ class Handles:
         gripper_actuator: id of the gripper's position actuator.
         tcp_site: id of the ``tcp`` site.
         tool0_body: id of the ``tool0`` body.
-        cube_body: id of the ``cube`` body.
-        cube_geom: id of the ``cube`` geom.
-        cube_qpos: first qpos address of the cube's free joint (7 values: position, quaternion).
-        cube_dof: first dof address of the cube's free joint (6 values).
+        object_body: id of the object's body.
+        object_geoms: ids of the object's geoms (one per primitive or convex part).
+        object_qpos: first qpos address of the object's free joint (7 values: position, quaternion).
+        object_dof: first dof address of the object's free joint (6 values).
         pad_geoms: ids of the left and right pad geoms (2,).
         robot_bodies: ids of every body of the arm and the gripper.
         gripper_bodies: ids of the gripper's bodies (base and fingers).
@@ -189,13 +252,18 @@ class Handles:
     gripper_actuator: int
     tcp_site: int
     tool0_body: int
-    cube_body: int
-    cube_geom: int
-    cube_qpos: int
-    cube_dof: int
+    object_body: int
+    object_geoms: np.ndarray
+    object_qpos: int
+    object_dof: int
     pad_geoms: np.ndarray
     robot_bodies: frozenset[int]
     gripper_bodies: frozenset[int]
+
+    @functools.cached_property
+    def object_geom_set(self) -> frozenset[int]:
+        """The object's geom ids as a set (fast membership tests)."""
+        return frozenset(int(g) for g in self.object_geoms)
 
     @classmethod
     def resolve(cls, m: mujoco.MjModel) -> Handles:
@@ -211,7 +279,8 @@ class Handles:
                          mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtObj.mjOBJ_ACTUATOR)
         arm = [find(J, n) for n in ARM_JOINTS]
         fingers = [find(J, n) for n in FINGER_JOINTS]
-        cube_joint = m.body_jntadr[find(B, "cube")]
+        object_body = find(B, OBJECT)
+        object_joint = m.body_jntadr[object_body]
         base = find(B, "base")
         gripper_base = find(B, "gripper_base")
 
@@ -232,10 +301,10 @@ class Handles:
             gripper_actuator=find(A, "gripper"),
             tcp_site=find(S, "tcp"),
             tool0_body=find(B, "tool0"),
-            cube_body=find(B, "cube"),
-            cube_geom=find(G, "cube"),
-            cube_qpos=int(m.jnt_qposadr[cube_joint]),
-            cube_dof=int(m.jnt_dofadr[cube_joint]),
+            object_body=object_body,
+            object_geoms=np.flatnonzero(m.geom_bodyid == object_body),
+            object_qpos=int(m.jnt_qposadr[object_joint]),
+            object_dof=int(m.jnt_dofadr[object_joint]),
             pad_geoms=np.array([find(G, "left_pad"), find(G, "right_pad")]),
             robot_bodies=subtree(base),
             gripper_bodies=subtree(gripper_base),
@@ -273,7 +342,7 @@ class Robot:
     robot_mjcf: str
 
     def make_data(self) -> mujoco.MjData:
-        """A fresh MuJoCo data at the ``home`` keyframe (gripper open, cube at its start), forward-computed."""
+        """A fresh MuJoCo data at the ``home`` keyframe (gripper open, object at its start), forward-computed."""
         d = mujoco.MjData(self.mj)
         mujoco.mj_resetDataKeyframe(self.mj, d, 0)
         mujoco.mj_forward(self.mj, d)

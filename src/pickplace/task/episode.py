@@ -6,16 +6,20 @@ any episode can be re-run alone and gives the same result (wall times aside).
 
 Configs can be written as TOML, one table per part::
 
+    [object]
+    library = "soda_can"
+    mass_kg = 0.3
+
     [scene]
-    cube_start_xy_m = [0.35, 0.20]
-    cube_mass_kg = 0.3
+    start_xy_m = [0.35, 0.20]
     obstacle = true
 
     [planner]
     time_budget_s = 0.5
 
-Tables: ``scene``, ``machine``, ``control``, ``planner``, ``timing``, ``ik``, ``faults``; keys are the
-dataclass fields.
+Tables: ``object``, ``scene``, ``machine``, ``control``, ``planner``, ``timing``, ``ik``, ``faults``; keys are
+the dataclass fields (``[object]`` also takes ``library = "NAME"``; ``[scene]`` also takes the ``cube_*`` keys
+of earlier versions, see :data:`~pickplace.world.config.LEGACY_SCENE_KEYS`).
 """
 
 from __future__ import annotations
@@ -37,7 +41,7 @@ from pickplace.motion.planning import PlannerConfig
 from pickplace.motion.timing import TimingConfig
 from pickplace.robot.ik import IKConfig
 from pickplace.robot.model import build
-from pickplace.task.faults import FaultConfig, apply_model_faults
+from pickplace.task.faults import LEGACY_FAULT_KEYS, FaultConfig, apply_model_faults
 from pickplace.task.machine import MachineConfig, MachineOutcome, Phase, PickPlaceMachine, SegmentPlan
 from pickplace.task.telemetry import Telemetry, TelemetryRecorder
 from pickplace.world.config import SceneConfig, from_mapping
@@ -50,7 +54,7 @@ class EpisodeConfig:
     """Everything an episode depends on besides its seed.
 
     Attributes:
-        scene: The world: cube, goal, table, obstacle.
+        scene: The world: the object, its start and goal, the table, the obstacle.
         machine: The state machine's tolerances and timeouts.
         control: Controller gains and vertical-move profile.
         planner: RRT* settings (the seed is replaced by the episode's).
@@ -77,16 +81,20 @@ class EpisodeConfig:
         """Build from nested mappings ``{"scene": {...}, "planner": {...}, ...}`` (unknown keys are errors)."""
         if not isinstance(data, dict):
             raise ConfigError("config", data, "must be a table of tables")
-        unknown = sorted(set(data) - set(_SECTIONS))
+        tables = ["object", *_SECTIONS]
+        unknown = sorted(set(data) - set(tables))
         if unknown:
-            raise ConfigError(unknown[0], data[unknown[0]], f"unknown table; allowed: {', '.join(_SECTIONS)}")
-        parts: dict[str, Any] = {}
+            raise ConfigError(unknown[0], data[unknown[0]], f"unknown table; allowed: {', '.join(tables)}")
+        for name in tables:
+            if not isinstance(data.get(name, {}), dict):
+                raise ConfigError(name, data[name], "must be a table of keys")
+        parts: dict[str, Any] = {"scene": SceneConfig.from_mapping(data.get("scene", {}),
+                                                                   object_data=data.get("object"))}
         for name, section_cls in _SECTIONS.items():
-            section = data.get(name, {})
-            if not isinstance(section, dict):
-                raise ConfigError(name, section, "must be a table of keys")
-            base = TimingConfig.ur5e() if section_cls is TimingConfig else None
-            parts[name] = from_mapping(section_cls, section, name, base)
+            if name != "scene":
+                base = TimingConfig.ur5e() if section_cls is TimingConfig else None
+                aliases = LEGACY_FAULT_KEYS if section_cls is FaultConfig else None
+                parts[name] = from_mapping(section_cls, data.get(name, {}), name, base, aliases)
         return cls(**parts)
 
     @classmethod
@@ -96,11 +104,18 @@ class EpisodeConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """Nested plain data (lists for tuples), the inverse of :meth:`from_dict`."""
-        return {name: _plain(dataclasses.asdict(getattr(self, name))) for name in _SECTIONS}
+        out = {"object": _plain(self.scene.object.to_dict()), "scene": _plain(self.scene.to_dict())}
+        out.update({name: _plain(dataclasses.asdict(getattr(self, name))) for name in _SECTIONS if name != "scene"})
+        return out
 
     def with_scene(self, **changes: Any) -> EpisodeConfig:
-        """A copy with some scene fields changed (validated)."""
-        return dataclasses.replace(self, scene=dataclasses.replace(self.scene, **changes))
+        """A copy with some scene fields changed (validated); the ``cube_*`` keys of earlier versions work too
+        (:data:`~pickplace.world.config.LEGACY_SCENE_KEYS`)."""
+        return dataclasses.replace(self, scene=SceneConfig.from_mapping(changes, self.scene))
+
+    def with_object(self, **changes: Any) -> EpisodeConfig:
+        """A copy whose object has some fields changed (validated)."""
+        return dataclasses.replace(self, scene=self.scene.with_object(**changes))
 
 
 def read_toml(path: str | Path) -> dict[str, Any]:
@@ -136,7 +151,7 @@ class EpisodeResult:
     """What one episode did, measured. Lengths in m, angles in rad, times in s, forces in N.
 
     Attributes:
-        success: The cube was placed at the goal and the arm returned home, every check passing, and the cube
+        success: The object was placed at the goal and the arm returned home, every check passing, and the object
             still lay within ``machine.place_tolerance_xy_m`` of the goal ``machine.stable_after_release_s``
             after the release.
         failure_phase: Name of the phase that failed, or None.
@@ -154,9 +169,10 @@ class EpisodeResult:
         waypoints_raw: Waypoints of the tree path per segment.
         waypoints_shortcut: Waypoints after shortcutting per segment.
         trajectory_duration_s: Duration of the timed trajectory per segment.
-        place_error_xy_m: Horizontal distance of the released cube (at rest) from the goal.
-        place_error_z_m: Height error of the released cube (positive: above its resting height).
-        place_error_yaw_rad: Yaw error of the released cube, modulo its 90 degree symmetry.
+        place_error_xy_m: Horizontal distance of the released object (at rest) from the goal.
+        place_error_z_m: Height error of the released object (positive: above its resting height).
+        place_error_yaw_rad: Yaw error of the released object, modulo its symmetry
+            (``object.yaw_period_rad``; 0 where yaw is not defined).
         final_place_error_xy_m: Horizontal error ``machine.stable_after_release_s`` after the release.
         ik_position_error_m: Largest tcp position residual of the IK solutions.
         ik_orientation_error_rad: Largest tcp orientation residual of the IK solutions.
@@ -168,17 +184,17 @@ class EpisodeResult:
         tcp_orientation_error_max_rad: Largest rotation of the tcp from its reference in those moves.
         tracking_by_phase: The tracking errors of each phase that ran a control loop, by phase name.
         grip_force_n: Sum of the pads' normal forces when the grip settled.
-        lift_grip_force_n: Mean sum of the pads' normal forces while the cube is lifted off the table.
-        lift_load_n: Weight carried by the pads while lifting (their vertical force minus m times the cube's
-            vertical acceleration, averaged); m g when the pads alone hold the cube.
+        lift_grip_force_n: Mean sum of the pads' normal forces while the object is lifted off the table.
+        lift_load_n: Weight carried by the pads while lifting (their vertical force minus m times the object's
+            vertical acceleration, averaged); m g when the pads alone hold the object.
         force_closure: The settled grip passed the 6D force-closure test on the simulated contacts.
         grasp_margin: Ferrari–Canny margin of that grip.
-        slip_max_m: Largest motion of the cube in the tcp frame while held.
+        slip_max_m: Largest motion of the object in the tcp frame while held.
         torque_saturation_events: Control steps with a clipped torque.
         unexpected_contacts: Geom pairs of every unexpected contact met (recovered from or not).
         retries: Recoveries used.
         recoveries: One line per recovery: the failure caught and what was done.
-        measured_cube_mass_kg: The cube's mass as the pads felt it while lifting (``lift_load_n / g``).
+        measured_mass_kg: The object's mass as the pads felt it while lifting (``lift_load_n / g``).
         config: The full config the episode ran with.
         telemetry: Per-step samples for plots and video (only when asked for; not serialized).
     """
@@ -219,7 +235,7 @@ class EpisodeResult:
     unexpected_contacts: tuple[tuple[str, str], ...]
     retries: int
     recoveries: tuple[str, ...]
-    measured_cube_mass_kg: float
+    measured_mass_kg: float
     config: EpisodeConfig
     telemetry: Telemetry | None = field(default=None, repr=False)
 
@@ -319,7 +335,7 @@ def _result(out: MachineOutcome, config: EpisodeConfig, seed: int, wall: float, 
         unexpected_contacts=tuple(out.unexpected_contacts),
         retries=len(out.recoveries),  # each recovery (regrasp, replan, payload correction) is one retry
         recoveries=tuple(out.recoveries),
-        measured_cube_mass_kg=out.lift_load_n / 9.81,
+        measured_mass_kg=out.lift_load_n / 9.81,
         config=config,
         telemetry=telemetry,
     )

@@ -5,7 +5,7 @@ goes wrong; :func:`apply_model_faults` changes the models before the episode sta
 softness, mass, the tcp the controller believes in) and a :class:`FaultInjector`, called after every
 simulation step by the state machine's monitor, applies the timed ones (pushes, the obstacle that appears).
 
-What the machine *believes* stays the nominal scene: the cube's mass for the payload compensation, the tcp
+What the machine *believes* stays the nominal scene: the object's mass for the payload compensation, the tcp
 offset of the kinematic model, the world it planned in. That gap is the fault.
 """
 
@@ -25,27 +25,32 @@ from pickplace.world.config import check_range, check_vector
 log = logging.getLogger(__name__)
 
 
+#: ``[faults]`` keys of earlier versions, still accepted: old name -> field.
+LEGACY_FAULT_KEYS = {"cube_mass_scale": "true_mass_scale"}
+
+
 @dataclass(frozen=True)
 class FaultConfig:
     """What goes wrong in an episode (all off by default). Forces in N, times in s, lengths in m.
 
     Attributes:
-        pad_friction_scale: Friction of the pad-cube contacts relative to the cube's nominal friction.
+        pad_friction_scale: Friction of the pad-object contacts relative to the object's nominal friction.
         pad_softness_scale: Time constant of the pad contacts' solref relative to nominal (> 1 is softer, the
             reference design's "contact oscillation from a soft solref").
-        cube_mass_scale: True mass of the cube relative to what the machine believes (payload compensation).
+        true_mass_scale: The object's true mass relative to what the machine believes (payload compensation;
+            ``cube_mass_scale`` in older configs).
         tcp_offset_error_m: Error of the tcp offset in the robot's kinematic model, along the tool axis: the
             machine believes the tcp is this much further out than it is (-0.2 m flips the 0.1 m offset).
         tcp_yaw_error_rad: Error of the tcp orientation in the robot's kinematic model, about the tool axis (a
             gripper mounted turned on the flange): the machine believes the tcp frame is turned this much
             further than it is, so it grasps and places turned by this angle.
-        pre_pick_push_n: Horizontal force (x, y) on the resting cube once it has been observed, while the arm
-            approaches (the cube is not where it was seen).
+        pre_pick_push_n: Horizontal force (x, y) on the resting object once it has been observed, while the arm
+            approaches (the object is not where it was seen).
         pre_pick_push_s: How long that push lasts.
-        placed_push_n: Horizontal force (x, y) on the placed cube as the arm starts to retract (it is bumped
+        placed_push_n: Horizontal force (x, y) on the placed object as the arm starts to retract (it is bumped
             after the release check).
         placed_push_s: How long that push lasts.
-        transport_push_n: Force (x, y, z) on the cube while it is carried.
+        transport_push_n: Force (x, y, z) on the object while it is carried.
         transport_push_start_s: When the transport push starts, after the transport trajectory starts.
         transport_push_s: How long the transport push lasts (0: no push).
         intruder: An obstacle appears across the transport path right after it was planned.
@@ -54,7 +59,7 @@ class FaultConfig:
 
     pad_friction_scale: float = 1.0
     pad_softness_scale: float = 1.0
-    cube_mass_scale: float = 1.0
+    true_mass_scale: float = 1.0
     tcp_offset_error_m: float = 0.0
     tcp_yaw_error_rad: float = 0.0
     pre_pick_push_n: tuple[float, float] = (0.0, 0.0)
@@ -73,7 +78,7 @@ class FaultConfig:
                                                      0.0, 5.0))
         set_(self, "pad_softness_scale", check_range("faults.pad_softness_scale", self.pad_softness_scale,
                                                      0.1, 100.0))
-        set_(self, "cube_mass_scale", check_range("faults.cube_mass_scale", self.cube_mass_scale, 0.0, 50.0,
+        set_(self, "true_mass_scale", check_range("faults.true_mass_scale", self.true_mass_scale, 0.0, 50.0,
                                                   lo_open=True))
         set_(self, "tcp_offset_error_m", check_range("faults.tcp_offset_error_m", self.tcp_offset_error_m,
                                                      -0.3, 0.3, unit="m"))
@@ -110,20 +115,20 @@ def apply_model_faults(robot: Robot, faults: FaultConfig) -> None:
     """
     m, h = robot.mj, robot.handles
     if faults.pad_friction_scale != 1.0 or faults.pad_softness_scale != 1.0:
-        # The cube's priority makes its friction and solref the contact's; give the pads a higher priority
-        # and the scaled values, so only the pad-cube contacts change (the cube still slides on the table
+        # The object's priority makes its friction and solref the contact's; give the pads a higher priority
+        # and the scaled values, so only the pad-object contacts change (the object still slides on the table
         # as before).
-        cube_priority = int(m.geom_priority[h.cube_geom])
+        g = int(h.object_geoms[0])
         for pad in h.pad_geoms:
-            m.geom_priority[pad] = cube_priority + 1
-            m.geom_friction[pad] = m.geom_friction[h.cube_geom] * [faults.pad_friction_scale, 1.0, 1.0]
-            m.geom_solref[pad] = m.geom_solref[h.cube_geom] * [faults.pad_softness_scale, 1.0]
-            m.geom_solimp[pad] = m.geom_solimp[h.cube_geom]
-            m.geom_condim[pad] = m.geom_condim[h.cube_geom]
-    if faults.cube_mass_scale != 1.0:
-        b = h.cube_body
-        m.body_mass[b] *= faults.cube_mass_scale
-        m.body_inertia[b] *= faults.cube_mass_scale
+            m.geom_priority[pad] = int(m.geom_priority[g]) + 1
+            m.geom_friction[pad] = m.geom_friction[g] * [faults.pad_friction_scale, 1.0, 1.0]
+            m.geom_solref[pad] = m.geom_solref[g] * [faults.pad_softness_scale, 1.0]
+            m.geom_solimp[pad] = m.geom_solimp[g]
+            m.geom_condim[pad] = m.geom_condim[g]
+    if faults.true_mass_scale != 1.0:
+        b = h.object_body
+        m.body_mass[b] *= faults.true_mass_scale
+        m.body_inertia[b] *= faults.true_mass_scale
         mujoco.mj_setConst(m, mujoco.MjData(m))  # derived quantities (e.g. body_invweight0) follow the mass
     if faults.tcp_offset_error_m != 0.0 or faults.tcp_yaw_error_rad != 0.0:
         frame = robot.pin.frames[robot.pin_tcp_frame]
@@ -154,7 +159,7 @@ class FaultInjector:
         self.intruder_placed = False
 
     def pushing(self, phase: str, t_s: float) -> np.ndarray:
-        """The force (3,) (N) on the cube at episode time ``t_s`` during ``phase``."""
+        """The force (3,) (N) on the object at episode time ``t_s`` during ``phase``."""
         f = self.faults
         if phase == "EXEC_APPROACH" and f.pre_pick_push_s > 0 and any(f.pre_pick_push_n):
             if self._pre_pick_t0 is None:
@@ -176,7 +181,7 @@ class FaultInjector:
 
     def step(self, d: mujoco.MjData, phase: str, t_s: float) -> None:
         """Apply the pushes for the next step."""
-        d.xfrc_applied[self.robot.handles.cube_body, :3] = self.pushing(phase, t_s)
+        d.xfrc_applied[self.robot.handles.object_body, :3] = self.pushing(phase, t_s)
 
     def place_intruder(self, d: mujoco.MjData, start_xyz: np.ndarray, goal_xyz: np.ndarray) -> None:
         """Put the intruding wall across the straight line between two tcp positions (m), at their midpoint."""
@@ -191,4 +196,4 @@ class FaultInjector:
         log.info("fault: an obstacle appeared at (%.3f, %.3f) m", mid[0], mid[1])
 
 
-__all__ = ["FaultConfig", "FaultInjector", "apply_model_faults"]
+__all__ = ["LEGACY_FAULT_KEYS", "FaultConfig", "FaultInjector", "apply_model_faults"]

@@ -7,9 +7,9 @@ Manipulation fails quietly — a slipped grasp raises nothing by itself — so e
 outcome, and a monitor runs after *every* simulation step of every phase:
 
 * unexpected contacts: the arm or the gripper touching the table, the floor, an obstacle or itself; the
-  cube touching an obstacle or the floor, or the table while it is carried; the gripper touching the cube
+  object touching an obstacle or the floor, or the table while it is carried; the gripper touching the object
   while it approaches it. The failure names the geoms.
-* slip: from the end of CLOSE until RELEASE, the cube's position in the tcp frame is compared with the
+* slip: from the end of CLOSE until RELEASE, the object's position in the tcp frame is compared with the
   one measured when the grip settled; moving more than ``MachineConfig.slip_tolerance_m`` fails the phase.
 
 Everything the machine measures is collected in a :class:`MachineOutcome`; :mod:`pickplace.task.episode` turns
@@ -34,7 +34,7 @@ import pinocchio as pin
 from pickplace.errors import ConfigError, GraspFailed, PickPlaceError, UnreachableTarget
 from pickplace.grasping.closure import analyze_grasp
 from pickplace.grasping.configurations import GraspConfigurations, solve_grasp_configurations
-from pickplace.grasping.targets import CLEARANCE_M, cube_yaw, place_targets
+from pickplace.grasping.targets import CLEARANCE_M, backed_off, object_yaw, place_targets, yaw_error
 from pickplace.motion import control
 from pickplace.motion.collision import CollisionChecker, CollisionPolicy
 from pickplace.motion.control import ControlConfig, Payload
@@ -42,12 +42,13 @@ from pickplace.motion.planning import PlannerConfig, plan
 from pickplace.motion.timing import TimingConfig, Trajectory, retime
 from pickplace.robot import gripper
 from pickplace.robot.ik import IKConfig, solve_ik
-from pickplace.robot.kinematics import frame_pose, wrap_to_pi
-from pickplace.robot.model import Robot
+from pickplace.robot.kinematics import frame_pose
+from pickplace.robot.model import Robot, object_geom_names
 from pickplace.task.faults import FaultConfig, FaultInjector
-from pickplace.task.monitor import CubeMoved, StepMonitor, UnexpectedContact
+from pickplace.task.monitor import ObjectMoved, StepMonitor, UnexpectedContact
 from pickplace.task.telemetry import TelemetryRecorder
 from pickplace.world.config import check_int, check_range
+from pickplace.world.mass import mass_properties
 
 log = logging.getLogger(__name__)
 
@@ -66,7 +67,7 @@ class Phase(enum.Enum):
     DESCEND_PLACE = "DESCEND_PLACE"
     RELEASE = "RELEASE"
     RETRACT = "RETRACT"
-    RECOVER = "RECOVER"  # only after a recoverable failure: stop, open, back off, re-observe the cube
+    RECOVER = "RECOVER"  # only after a recoverable failure: stop, open, back off, re-observe the object
     DONE = "DONE"
     FAILED = "FAILED"
 
@@ -104,26 +105,26 @@ class MachineConfig:
 
     Attributes:
         planning_margin_m: Clearance the planner keeps from the table, floor and obstacles (m).
-        close_timeout_s: Time allowed for the gripper to close and settle on the cube (s).
+        close_timeout_s: Time allowed for the gripper to close and settle on the object (s).
         min_pad_force_n: Normal force each pad must press with for the grip to count (N).
         finger_settle_speed_m_s: Fingers slower than this count as settled (m/s).
-        slip_tolerance_m: Largest allowed motion of the cube in the tcp frame while it is held (m).
-        release_timeout_s: Time allowed for the pads to open and clear the cube (s).
-        release_clearance_m: Gap between each pad and the cube needed before retracting (m).
-        cube_rest_speed_m_s: The released cube counts as resting below this speed (m/s).
-        place_tolerance_xy_m: Largest horizontal distance of the placed cube from the goal (m).
-        place_tolerance_z_m: Largest height error of the placed cube (m).
-        place_tolerance_yaw_rad: Largest yaw error of the placed cube (rad, modulo 90 degrees).
+        slip_tolerance_m: Largest allowed motion of the object in the tcp frame while it is held (m).
+        release_timeout_s: Time allowed for the pads to open and clear the object (s).
+        release_clearance_m: Gap between each pad and the object needed before retracting (m).
+        object_rest_speed_m_s: The released object counts as resting below this speed (m/s).
+        place_tolerance_xy_m: Largest horizontal distance of the placed object from the goal (m).
+        place_tolerance_z_m: Largest height error of the placed object (m).
+        place_tolerance_yaw_rad: Largest yaw error of the placed object (rad, modulo its symmetry).
         retract_height_m: Vertical retreat after the release, before returning home (m).
         settle_s: Hold at the end of each trajectory before the next phase (s).
         poll_s: Step of the loops that wait for the gripper (s).
         stable_after_release_s: After DONE, the simulation continues until this long after the release; the
-            cube must then still lie within ``place_tolerance_xy_m`` of the goal, or the episode fails (s).
+            object must then still lie within ``place_tolerance_xy_m`` of the goal, or the episode fails (s).
         max_retries: Recoveries allowed per episode (regrasp, re-pick, replan); 0 turns recovery off. A
             failure identical (numbers aside) to the one the last recovery answered is not retried again.
         predict_period_s: While a trajectory runs, the rest of it is checked against the world as it is now
             this often (s); a predicted collision stops the arm and replans.
-        cube_settle_timeout_s: During a recovery, time allowed for the released cube to come to rest (s).
+        object_settle_timeout_s: During a recovery, time allowed for the released object to come to rest (s).
     """
 
     planning_margin_m: float = 0.01
@@ -133,7 +134,7 @@ class MachineConfig:
     slip_tolerance_m: float = 0.003
     release_timeout_s: float = 1.0
     release_clearance_m: float = 0.002
-    cube_rest_speed_m_s: float = 0.002
+    object_rest_speed_m_s: float = 0.002
     place_tolerance_xy_m: float = 0.003
     place_tolerance_z_m: float = 0.003
     place_tolerance_yaw_rad: float = 0.05
@@ -143,19 +144,19 @@ class MachineConfig:
     stable_after_release_s: float = 1.0
     max_retries: int = 3
     predict_period_s: float = 0.05
-    cube_settle_timeout_s: float = 2.0
+    object_settle_timeout_s: float = 2.0
 
     def __post_init__(self) -> None:
         limits = {
             "planning_margin_m": (0.0, 0.1, "m"), "close_timeout_s": (0.01, 10.0, "s"),
             "min_pad_force_n": (0.0, 100.0, "N"), "finger_settle_speed_m_s": (1e-5, 1.0, "m/s"),
             "slip_tolerance_m": (1e-4, 0.05, "m"), "release_timeout_s": (0.01, 10.0, "s"),
-            "release_clearance_m": (0.0, 0.03, "m"), "cube_rest_speed_m_s": (1e-5, 1.0, "m/s"),
+            "release_clearance_m": (0.0, 0.03, "m"), "object_rest_speed_m_s": (1e-5, 1.0, "m/s"),
             "place_tolerance_xy_m": (1e-4, 0.1, "m"),
             "place_tolerance_z_m": (1e-4, 0.1, "m"), "place_tolerance_yaw_rad": (1e-4, math.pi / 4, "rad"),
             "retract_height_m": (0.0, 0.5, "m"), "settle_s": (0.0, 5.0, "s"), "poll_s": (0.001, 0.1, "s"),
             "stable_after_release_s": (0.0, 10.0, "s"), "predict_period_s": (0.001, 1.0, "s"),
-            "cube_settle_timeout_s": (0.01, 10.0, "s"),
+            "object_settle_timeout_s": (0.01, 10.0, "s"),
         }
         for name, (lo, hi, unit) in limits.items():
             object.__setattr__(self, name, check_range(f"machine.{name}", getattr(self, name), lo, hi, unit=unit))
@@ -206,14 +207,14 @@ class MachineOutcome:
         tracking_total: The same over the whole episode.
         torque_saturation_events: Control steps with a clipped torque, all phases.
         grip_force_n: Sum of the pads' normal forces when the grip settled (N).
-        lift_grip_force_n: Mean sum of the pads' normal forces while the cube is lifted off the table (N).
-        lift_load_n: Weight of the cube as the pads measure it while lifting (N): ``g * sum(F_z) / sum(g + a_z)``
-            over the airborne steps, with F_z the pads' vertical force on the cube and a_z its measured
-            acceleration. It equals m g when the pads alone hold the cube.
+        lift_grip_force_n: Mean sum of the pads' normal forces while the object is lifted off the table (N).
+        lift_load_n: Weight of the object as the pads measure it while lifting (N): ``g * sum(F_z) / sum(g + a_z)``
+            over the airborne steps, with F_z the pads' vertical force on the object and a_z its measured
+            acceleration. It equals m g when the pads alone hold the object.
         force_closure: Whether the settled grip was force closure (6D wrench test on the actual contacts).
         grasp_margin: Ferrari–Canny margin of that grip (normalized wrench units).
-        slip_max_m: Largest motion of the cube in the tcp frame while it was held (m).
-        place_error_xy_m, place_error_z_m, place_error_yaw_rad: The cube at rest after the release,
+        slip_max_m: Largest motion of the object in the tcp frame while it was held (m).
+        place_error_xy_m, place_error_z_m, place_error_yaw_rad: The object at rest after the release,
             relative to the goal (m, m, rad modulo 90 degrees).
         final_place_error_xy_m: Horizontal error ``stable_after_release_s`` after the release (m).
         unexpected_contacts: Geom pairs of unexpected contacts seen (empty on success).
@@ -263,7 +264,7 @@ class PickPlaceMachine:
     """Runs one pick and place in a MuJoCo simulation, phase by phase.
 
     Args:
-        robot: The models (the scene gives the cube and the goal).
+        robot: The models (the scene gives the object and the goal).
         data: The simulation state, advanced in place.
         machine: Tolerances and timeouts.
         control_config: Controller gains and vertical-move profile.
@@ -307,8 +308,9 @@ class PickPlaceMachine:
         self.configs: GraspConfigurations | None = None
         self._trajectory: Trajectory | None = None
         self._payload: Payload | None = None
-        self._T_tcp_cube: pin.SE3 | None = None
+        self._T_tcp_object: pin.SE3 | None = None
         self._release_t = math.nan
+        self._object_names = frozenset(object_geom_names(robot.scene.object))
         self._tallies: dict[str, control.TrackingTally] = {}
         self._tally_total = control.TrackingTally()
 
@@ -318,9 +320,9 @@ class PickPlaceMachine:
         """Current arm joints (6,) (rad)."""
         return self.d.qpos[self.robot.handles.arm_qpos].copy()
 
-    def _cube_pose(self) -> pin.SE3:
+    def _object_pose(self) -> pin.SE3:
         h = self.robot.handles
-        return pin.SE3(self.d.xmat[h.cube_body].reshape(3, 3).copy(), self.d.xpos[h.cube_body].copy())
+        return pin.SE3(self.d.xmat[h.object_body].reshape(3, 3).copy(), self.d.xpos[h.object_body].copy())
 
     def _tcp_pose(self) -> pin.SE3:
         h = self.robot.handles
@@ -407,7 +409,7 @@ class PickPlaceMachine:
         return predictor
 
     def _free(self, margin_m: float) -> CollisionChecker:
-        """A checker for the empty hand, with the world (the cube, anything that moved) as it is now."""
+        """A checker for the empty hand, with the world (the object, anything that moved) as it is now."""
         return CollisionChecker(self.robot, CollisionPolicy(margin_m=margin_m), world=self.d)
 
     def _execute(self, phase: Phase) -> None:
@@ -430,25 +432,29 @@ class PickPlaceMachine:
                                          "end, 0.3 s after it (limit 0.01 rad)")
 
     def _vertical(self, phase: Phase, target_z: float, hook: control.Hook | None = None) -> control.CartesianRecord:
-        """Move the tcp to ``target_z`` (m); ``hook`` replaces the monitor (and must call it)."""
-        rec = control.move_vertical(self.robot, self.d, target_z, self.ctrl, payload=self._payload,
-                                    hook=hook or self.monitor, noise=self.noise)
+        """Move the tcp straight up or down to ``target_z`` (m); ``hook`` replaces the monitor (and must call it)."""
+        target = self._tcp_pose().translation.copy()
+        target[2] = target_z
+        return self._linear(phase, target, hook)
+
+    def _linear(self, phase: Phase, target: np.ndarray, hook: control.Hook | None = None) -> control.CartesianRecord:
+        """Move the tcp along a straight line to ``target`` (3,) (m); ``hook`` replaces the monitor."""
+        rec = control.move_linear(self.robot, self.d, target, self.ctrl, payload=self._payload,
+                                  hook=hook or self.monitor, noise=self.noise)
         self._count(rec)
         if not rec.reached:
-            raise PhaseFailed(phase, f"the tcp stopped {rec.final_height_error_m * 1e3:.2f} mm from its target "
-                                     "height")
+            raise PhaseFailed(phase, f"the tcp stopped {rec.final_error_m * 1e3:.2f} mm from its target")
         return rec
 
     # ------------------------------------------------------------------ phases
     def _idle(self) -> Phase:
-        """Observe the cube, solve the four targets (before the arm moves: unreachable goals fail here)."""
+        """Observe the object, solve every target (before the arm moves: unreachable goals fail here)."""
         t0 = time.perf_counter()
         mujoco.mj_forward(self.robot.mj, self.d)
-        cube = self._cube_pose()
-        configs = solve_grasp_configurations(self.robot, self.ik, cube.translation, cube_yaw(cube.rotation), self.d,
-                                             self.cfg.planning_margin_m)
+        obj = self._object_pose()
+        configs = solve_grasp_configurations(self.robot, self.ik, obj, self.d, self.cfg.planning_margin_m)
         self.robot.scene.check_goal_on_table()
-        self.monitor.watch_cube_at = cube.translation.copy()
+        self.monitor.watch_object_at = obj.translation.copy()
         self.configs = configs
         self._note_ik(*configs.results())
         self.out.wall_plan_time_s += time.perf_counter() - t0
@@ -464,19 +470,21 @@ class PickPlaceMachine:
         return Phase.DESCEND
 
     def _descend(self) -> Phase:
+        """The straight approach from the pregrasp to the grasp (a descent for a top-down grasp)."""
         assert self.configs is not None
-        target = self.configs.targets.grasp
-        self._vertical(Phase.DESCEND, float(target.translation[2]))
-        tcp = self._tcp_pose()
-        off = float(np.linalg.norm(tcp.translation[:2] - self._cube_pose().translation[:2]))
+        targets = self.configs.targets
+        self._linear(Phase.DESCEND, targets.grasp.translation)
+        want = (self._object_pose() * targets.T_object_tcp).translation  # where the grasp is, the object as it is
+        off = float(np.linalg.norm(self._tcp_pose().translation - want))
         if off > 0.005:
-            raise PhaseFailed(Phase.DESCEND, f"the tcp is {off * 1e3:.1f} mm from the cube's centre (limit 5 mm)")
+            raise PhaseFailed(Phase.DESCEND, f"the tcp is {off * 1e3:.1f} mm from its grasp on the "
+                                             f"{self.robot.scene.object.name} (limit 5 mm)")
         return Phase.CLOSE
 
     def _close(self) -> Phase:
         robot, d, cfg = self.robot, self.d, self.cfg
-        self.monitor.watch_cube_at = None  # the pads move it now
-        self.monitor.allow_hand_cube = True
+        self.monitor.watch_object_at = None  # the pads move it now
+        self.monitor.allow_hand_object = True
         gripper.command(robot, d, True)
 
         def gripping() -> bool:
@@ -487,12 +495,14 @@ class PickPlaceMachine:
         forces = gripper.pad_forces(robot, d)
         if not settled:
             travel = gripper.finger_travel(robot, d)
-            raise GraspFailed(f"the pads did not settle on the cube within {cfg.close_timeout_s:g} s: "
+            raise GraspFailed(f"the pads did not settle on the {robot.scene.object.name} within "
+                              f"{cfg.close_timeout_s:g} s: "
                               f"pad forces {forces[0]:.1f} / {forces[1]:.1f} N (need {cfg.min_pad_force_n:g} "
                               f"N each), finger travel {travel * 1e3:.1f} mm")
         contacts = gripper.pad_contacts(robot, d)
-        cube = self._cube_pose()
-        fc = analyze_grasp(contacts, cube.translation, robot.scene.cube_size_m / 2)
+        obj = self._object_pose()
+        fc = analyze_grasp(contacts, obj.act(mass_properties(robot.scene.object).com_m),
+                           float(np.max(robot.scene.object.geometry().extent_m)) / 2)
         self.out.grip_force_n = float(forces.sum())
         self.out.force_closure = fc.force_closure
         self.out.grasp_margin = fc.margin
@@ -500,36 +510,36 @@ class PickPlaceMachine:
             raise GraspFailed(f"the grip is not force closure ({len(contacts)} contacts, margin {fc.margin:.3g})")
         self.monitor.start_holding(d)
         tcp = self._tcp_pose()
-        self._T_tcp_cube = tcp.actInv(cube)
-        self._payload = Payload.cube(robot.scene, tuple(self._T_tcp_cube.translation))
+        self._T_tcp_object = tcp.actInv(obj)
+        self._payload = Payload.held(robot.scene.object, self._T_tcp_object)
         return Phase.LIFT
 
     def _lift(self) -> Phase:
-        """Lift to the pregrasp height, weighing the cube on the way (the pads' force over its acceleration).
+        """Lift straight up, weighing the object on the way (the pads' force over its acceleration).
 
-        If the arm cannot hold the lift height because the cube is heavier (or lighter) than believed, the
+        If the arm cannot hold the lift height because the object is heavier (or lighter) than believed, the
         payload compensation is corrected with the measured mass and the move is repeated once.
         """
         assert self.configs is not None and self._payload is not None
-        target_z = float(self.configs.targets.pregrasp.translation[2])
-        z_cube0 = float(self._cube_pose().translation[2])
-        self.monitor.allow_cube_table = True  # until it leaves the table
+        target_z = float(self.configs.targets.lift.translation[2])
+        z_object0 = float(self._object_pose().translation[2])
+        self.monitor.allow_object_table = True  # until it leaves the table
         forces: list[float] = []
         f_z: list[float] = []
         g_plus_a: list[float] = []
         monitor, h = self.monitor, self.robot.handles
         g = float(-self.robot.mj.opt.gravity[2])
-        cube_az = h.cube_dof + 2  # the free joint's world z acceleration
+        object_az = h.object_dof + 2  # the free joint's world z acceleration
 
         def hook(d: mujoco.MjData) -> None:
             monitor(d)
-            if monitor.allow_cube_table and d.xpos[h.cube_body][2] > z_cube0 + 0.003:
-                monitor.allow_cube_table = False  # airborne: touching the table again is a failure
-            if not monitor.allow_cube_table:  # airborne: only the pads (and gravity) act on the cube
+            if monitor.allow_object_table and d.xpos[h.object_body][2] > z_object0 + 0.003:
+                monitor.allow_object_table = False  # airborne: touching the table again is a failure
+            if not monitor.allow_object_table:  # airborne: only the pads (and gravity) act on the object
                 normal, f = gripper.pad_load(self.robot, d)
                 forces.append(float(normal.sum()))
                 f_z.append(float(f[2]))
-                g_plus_a.append(g + float(d.qacc[cube_az]))
+                g_plus_a.append(g + float(d.qacc[object_az]))
 
         def measured_mass() -> float:
             return float(np.sum(f_z) / np.sum(g_plus_a)) if f_z else math.nan
@@ -544,7 +554,8 @@ class PickPlaceMachine:
         if (not rec.reached and math.isfinite(mass) and abs(mass / self._payload.mass_kg - 1.0) > 0.2
                 and self.retries < self.cfg.max_retries):
             self.retries += 1
-            note = (f"LIFT: the cube weighs {mass:.3f} kg, not {self._payload.mass_kg:.3f} kg (the arm stopped "
+            note = (f"LIFT: the {self.robot.scene.object.name} weighs {mass:.3f} kg, not "
+                    f"{self._payload.mass_kg:.3f} kg (the arm stopped "
                     f"{rec.final_height_error_m * 1e3:.2f} mm short) -> payload compensation corrected")
             self.out.recoveries.append(note)
             log.info("recovery: %s", note)
@@ -557,27 +568,28 @@ class PickPlaceMachine:
         self.out.lift_load_n = mass * g if math.isfinite(mass) else 0.0
         if not rec.reached:
             raise PhaseFailed(Phase.LIFT, f"the tcp stopped {rec.final_height_error_m * 1e3:.2f} mm from the lift "
-                                          f"height (cube weighed {mass:.3f} kg)")
-        self.monitor.allow_cube_table = False
-        rise = float(self._cube_pose().translation[2]) - z_cube0
+                                          f"height (the {self.robot.scene.object.name} weighed {mass:.3f} kg)")
+        self.monitor.allow_object_table = False
+        rise = float(self._object_pose().translation[2]) - z_object0
         lifted = target_z - float(self.configs.targets.grasp.translation[2])
         if abs(rise - lifted) > self.cfg.slip_tolerance_m:
-            raise GraspFailed(f"the cube rose {rise * 1e3:.1f} mm while the tcp rose {lifted * 1e3:.1f} mm")
+            raise GraspFailed(f"the {self.robot.scene.object.name} rose {rise * 1e3:.1f} mm while the tcp rose "
+                              f"{lifted * 1e3:.1f} mm")
         return Phase.PLAN_TRANSPORT
 
-    def _carrying(self, margin_m: float, allow_cube_table: bool) -> CollisionChecker:
+    def _carrying(self, margin_m: float, allow_object_table: bool) -> CollisionChecker:
         assert self.configs is not None
-        policy = CollisionPolicy(margin_m=margin_m, cube_held=True, allow_cube_table=allow_cube_table,
+        policy = CollisionPolicy(margin_m=margin_m, object_held=True, allow_object_table=allow_object_table,
                                  finger_m=gripper.finger_travel(self.robot, self.d))
-        return CollisionChecker(self.robot, policy, world=self.d, T_tcp_cube=self._T_tcp_cube)
+        return CollisionChecker(self.robot, policy, world=self.d, T_tcp_object=self._T_tcp_object)
 
     def _plan_transport(self) -> Phase:
-        """Re-target the place from the cube's measured pose in the hand, then plan to above the goal."""
+        """Re-target the place from the object's measured pose in the hand, then plan to above the goal."""
         assert self.configs is not None
         t0 = time.perf_counter()
-        tcp, cube = self._tcp_pose(), self._cube_pose()
-        self._T_tcp_cube = tcp.actInv(cube)
-        preplace, place, _ = place_targets(self.robot.scene, tcp, cube, self.configs.targets.place_yaw_rad)
+        tcp, obj = self._tcp_pose(), self._object_pose()
+        self._T_tcp_object = tcp.actInv(obj)
+        preplace, place = place_targets(self.robot.scene, tcp, obj, self.configs.targets.R_world_object_goal)
         finger = gripper.finger_travel(self.robot, self.d)
         carry_ik = self._carrying(self.cfg.planning_margin_m, False)  # the planner accepts it as a goal
         place_ik = self._carrying(0.0, True)
@@ -598,11 +610,11 @@ class PickPlaceMachine:
         return Phase.DESCEND_PLACE
 
     def _descend_place(self) -> Phase:
-        """Re-aim from the cube's pose in the hand *now* (it shifts a little in transit), then set it down."""
+        """Re-aim from the object's pose in the hand *now* (it shifts a little in transit), then set it down."""
         assert self.configs is not None
         t0 = time.perf_counter()
-        tcp, cube = self._tcp_pose(), self._cube_pose()
-        preplace, place, _ = place_targets(self.robot.scene, tcp, cube, self.configs.targets.place_yaw_rad)
+        tcp, obj = self._tcp_pose(), self._object_pose()
+        preplace, place = place_targets(self.robot.scene, tcp, obj, self.configs.targets.R_world_object_goal)
         finger = gripper.finger_travel(self.robot, self.d)
         aim = solve_ik(self.robot, preplace, self.q, "preplace", self.ik, finger_m=finger)
         self._note_ik(aim)
@@ -615,8 +627,8 @@ class PickPlaceMachine:
         z_table_touch = self.robot.scene.goal_pos_m[2] + 0.003
 
         def hook(d: mujoco.MjData) -> None:
-            if d.xpos[self.robot.handles.cube_body][2] < z_table_touch:
-                monitor.allow_cube_table = True  # setting it down
+            if d.xpos[self.robot.handles.object_body][2] < z_table_touch:
+                monitor.allow_object_table = True  # setting it down
             monitor(d)
 
         self._vertical(Phase.DESCEND_PLACE, float(place.translation[2]), hook)
@@ -625,50 +637,54 @@ class PickPlaceMachine:
     def _release(self) -> Phase:
         robot, d, cfg = self.robot, self.d, self.cfg
         self.monitor.holding = False
-        self.monitor.allow_cube_table = True
+        self.monitor.allow_object_table = True
         self._payload = None
         gripper.command(robot, d, False)
         self._release_t = self.monitor.t
         geom = gripper.GripperGeometry.measure(robot)
-        clear_travel = geom.contact_travel_m(robot.scene.cube_size_m) - cfg.release_clearance_m
-        cube_v = slice(robot.handles.cube_dof, robot.handles.cube_dof + 3)
+        clear_travel = geom.contact_travel_m(self.configs.targets.width_m) - cfg.release_clearance_m
+        object_v = slice(robot.handles.object_dof, robot.handles.object_dof + 3)
 
         def released() -> bool:
             return (gripper.finger_travel(robot, d) <= clear_travel and not np.any(gripper.pad_forces(robot, d) > 0.0)
-                    and float(np.linalg.norm(d.qvel[cube_v])) < cfg.cube_rest_speed_m_s)
+                    and float(np.linalg.norm(d.qvel[object_v])) < cfg.object_rest_speed_m_s)
 
         if not self._hold_until(self.q, released, cfg.release_timeout_s, min_s=cfg.poll_s):
             forces = gripper.pad_forces(robot, d)
-            raise PhaseFailed(Phase.RELEASE, f"the pads did not clear the cube within {cfg.release_timeout_s:g} "
+            raise PhaseFailed(Phase.RELEASE, f"the pads did not clear the {robot.scene.object.name} within "
+                                             f"{cfg.release_timeout_s:g} "
                                              f"s (finger travel {gripper.finger_travel(robot, d) * 1e3:.1f} mm, pad "
-                                             f"forces {forces[0]:.2f} / {forces[1]:.2f} N, cube speed "
-                                             f"{float(np.linalg.norm(d.qvel[cube_v])) * 1e3:.1f} mm/s)")
-        self.monitor.allow_hand_cube = False
+                                             f"forces {forces[0]:.2f} / {forces[1]:.2f} N, its speed "
+                                             f"{float(np.linalg.norm(d.qvel[object_v])) * 1e3:.1f} mm/s)")
+        self.monitor.allow_hand_object = False
         self._measure_place()
         if self.out.place_error_xy_m > cfg.place_tolerance_xy_m:
-            raise PhaseFailed(Phase.RELEASE, f"the cube rests {self.out.place_error_xy_m * 1e3:.2f} mm from the goal "
+            raise PhaseFailed(Phase.RELEASE, f"the {robot.scene.object.name} rests "
+                                             f"{self.out.place_error_xy_m * 1e3:.2f} mm from the goal "
                                              f"(tolerance {cfg.place_tolerance_xy_m * 1e3:.2f} mm)")
         if abs(self.out.place_error_z_m) > cfg.place_tolerance_z_m:
-            raise PhaseFailed(Phase.RELEASE, f"the cube rests {self.out.place_error_z_m * 1e3:.2f} mm above the "
+            raise PhaseFailed(Phase.RELEASE, f"the {robot.scene.object.name} rests "
+                                             f"{self.out.place_error_z_m * 1e3:.2f} mm above the "
                                              "table (it should sit on it; tolerance "
                                              f"{cfg.place_tolerance_z_m * 1e3:.2f} mm)")
         if abs(self.out.place_error_yaw_rad) > cfg.place_tolerance_yaw_rad:
-            raise PhaseFailed(Phase.RELEASE, f"the cube's yaw is {self.out.place_error_yaw_rad:.3f} rad off the "
+            raise PhaseFailed(Phase.RELEASE, f"the {robot.scene.object.name}'s yaw is "
+                                             f"{self.out.place_error_yaw_rad:.3f} rad off the "
                                              f"goal's (tolerance {cfg.place_tolerance_yaw_rad:.3f} rad)")
         return Phase.RETRACT
 
     def _measure_place(self) -> None:
         scene = self.robot.scene
-        cube = self._cube_pose()
-        err = cube.translation - scene.goal_pos_m
+        assert self.configs is not None
+        obj = self._object_pose()
+        err = obj.translation - scene.goal_pos_m
         self.out.place_error_xy_m = float(np.hypot(err[0], err[1]))
         self.out.place_error_z_m = float(err[2])
-        dyaw = float(wrap_to_pi(cube_yaw(cube.rotation) - scene.goal_yaw_rad))
-        self.out.place_error_yaw_rad = float(wrap_to_pi(4 * dyaw) / 4)  # the cube looks the same every 90 deg
+        self.out.place_error_yaw_rad = yaw_error(obj.rotation, self.configs.targets.R_world_object_goal,
+                                                 scene.object.yaw_period_rad)
 
     def _retract(self) -> Phase:
-        tcp_z = float(self._tcp_pose().translation[2])
-        self._vertical(Phase.RETRACT, tcp_z + self.cfg.retract_height_m)
+        self._linear(Phase.RETRACT, backed_off(self._tcp_pose(), self.cfg.retract_height_m).translation)
         self._plan_segment("return", self._free, self.robot.home_q)
         self._execute(Phase.RETRACT)
         return Phase.DONE
@@ -731,16 +747,16 @@ class PickPlaceMachine:
         if isinstance(exc, CollisionPredicted) and phase in _REPLAN:
             action, nxt = "stop and replan", _REPLAN[phase]
             self._stop()  # before planning from where the arm stands
-        elif isinstance(exc, UnexpectedContact) and phase in _REPLAN and not self._touches_cube(exc):
+        elif isinstance(exc, UnexpectedContact) and phase in _REPLAN and not self._touches_object(exc):
             action, nxt = "back off along the executed path and replan", _REPLAN[phase]
             self._back_off()
         elif isinstance(exc, GraspFailed) and phase in _GRASP_PHASES:
-            action, nxt = "stop, open, back off, re-observe the cube and grasp again", Phase.RECOVER
-        elif isinstance(exc, CubeMoved) and phase in (Phase.EXEC_APPROACH, Phase.DESCEND):
-            action, nxt = "stop, wait for the cube to rest, observe it again and approach again", Phase.RECOVER
+            action, nxt = "stop, open, back off, re-observe the object and grasp again", Phase.RECOVER
+        elif isinstance(exc, ObjectMoved) and phase in (Phase.EXEC_APPROACH, Phase.DESCEND):
+            action, nxt = "stop, wait for the object to rest, observe it again and approach again", Phase.RECOVER
         elif phase is Phase.DESCEND and (isinstance(exc, PhaseFailed) or
-                                         (isinstance(exc, UnexpectedContact) and self._touches_cube(exc))):
-            action, nxt = "back off, re-observe the cube and approach again", Phase.RECOVER
+                                         (isinstance(exc, UnexpectedContact) and self._touches_object(exc))):
+            action, nxt = "back off, re-observe the object and approach again", Phase.RECOVER
         else:
             return None
         self.retries += 1
@@ -750,9 +766,9 @@ class PickPlaceMachine:
         log.info("recovery %d/%d: %s", self.retries, self.cfg.max_retries, note)
         return nxt
 
-    @staticmethod
-    def _touches_cube(exc: UnexpectedContact) -> bool:
-        return all("cube" in pair for pair in exc.pairs)
+    def _touches_object(self, exc: UnexpectedContact) -> bool:
+        """Whether every pair of the contact involves the object."""
+        return all(any(name in self._object_names for name in pair) for pair in exc.pairs)
 
     def _back_off(self) -> None:
         """Retrace the last 0.3 s of the running trajectory (collisions tolerated), then stand still."""
@@ -772,51 +788,55 @@ class PickPlaceMachine:
             self.monitor.tolerate_contacts = False
 
     def _recover(self) -> Phase:
-        """Let go, back off upwards, wait for the cube to rest, and observe it again for a new approach."""
+        """Let go, back off upwards, wait for the object to rest, and observe it again for a new approach."""
         try:
             return self._recover_steps()
         except UnexpectedContact as exc:
-            if any(set(pair) == {"cube", "floor"} for pair in exc.pairs):
-                raise PhaseFailed(Phase.RECOVER, f"the cube fell off the table ({exc})") from exc
+            if any("floor" in pair and any(n in self._object_names for n in pair) for pair in exc.pairs):
+                raise PhaseFailed(Phase.RECOVER, f"the {self.robot.scene.object.name} fell off the table ({exc})"
+                                  ) from exc
             raise
 
     def _recover_steps(self) -> Phase:
         robot, d, cfg = self.robot, self.d, self.cfg
         scene = robot.scene
         self.monitor.holding = False
-        self.monitor.watch_cube_at = None
-        self.monitor.allow_hand_cube = True
-        self.monitor.allow_cube_table = True
+        self.monitor.watch_object_at = None
+        self.monitor.allow_hand_object = True
+        self.monitor.allow_object_table = True
         self._stop()  # with the grip as it is: opening at speed would throw whatever is still held
         self._payload = None
         gripper.command(robot, d, False)
         self._hold(self.q, 0.15)
-        z_safe = scene.table_height_m + scene.cube_size_m + CLEARANCE_M
+        z_safe = scene.table_height_m + float(np.max(scene.object.geometry().extent_m)) + CLEARANCE_M
         if float(self._tcp_pose().translation[2]) < z_safe:
             self._vertical(Phase.RECOVER, z_safe)
-        cube_v = slice(robot.handles.cube_dof, robot.handles.cube_dof + 6)
-        if not self._hold_until(None, lambda: float(np.linalg.norm(d.qvel[cube_v])) <= 0.01, cfg.cube_settle_timeout_s):
-            raise PhaseFailed(Phase.RECOVER, f"the cube did not come to rest within {cfg.cube_settle_timeout_s:.1f} s")
-        self.monitor.allow_hand_cube = False
-        cube = self._cube_pose()
-        resting_z = scene.table_height_m + scene.cube_size_m / 2
-        tilt = float(np.arccos(np.clip(np.max(np.abs(cube.rotation[2])), -1.0, 1.0)))  # a face up: 0
-        if abs(cube.translation[2] - resting_z) > 0.005 or tilt > 0.1:
-            raise PhaseFailed(Phase.RECOVER, f"the cube is not resting on the table: centre at z = "
-                                             f"{cube.translation[2]:.3f} m (expected {resting_z:.3f} m), tilted "
+        object_v = slice(robot.handles.object_dof, robot.handles.object_dof + 6)
+        name = scene.object.name
+        if not self._hold_until(None, lambda: float(np.linalg.norm(d.qvel[object_v])) <= 0.01,
+                                cfg.object_settle_timeout_s):
+            raise PhaseFailed(Phase.RECOVER, f"the {name} did not come to rest within "
+                                             f"{cfg.object_settle_timeout_s:.1f} s")
+        self.monitor.allow_hand_object = False
+        obj = self._object_pose()
+        resting_z = scene.rest_z_m
+        tilt = float(np.arccos(np.clip(np.max(np.abs(obj.rotation[2])), -1.0, 1.0)))  # an axis up: 0
+        if abs(obj.translation[2] - resting_z) > 0.005 or tilt > 0.1:
+            raise PhaseFailed(Phase.RECOVER, f"the {name} is not resting on the table: origin at z = "
+                                             f"{obj.translation[2]:.3f} m (expected {resting_z:.3f} m), tilted "
                                              f"{tilt:.2f} rad")
         t0 = time.perf_counter()
         try:
-            self.configs = solve_grasp_configurations(robot, self.ik, cube.translation, cube_yaw(cube.rotation), d,
+            self.configs = solve_grasp_configurations(robot, self.ik, obj, d,
                                                       cfg.planning_margin_m)
         except UnreachableTarget as exc:
-            where = f"({cube.translation[0]:.3f}, {cube.translation[1]:.3f}) m"
-            raise PhaseFailed(Phase.RECOVER, f"the cube now rests at {where}, out of reach: {exc}") from exc
+            where = f"({obj.translation[0]:.3f}, {obj.translation[1]:.3f}) m"
+            raise PhaseFailed(Phase.RECOVER, f"the {name} now rests at {where}, out of reach: {exc}") from exc
         finally:
             self.out.wall_plan_time_s += time.perf_counter() - t0
-        self.monitor.watch_cube_at = cube.translation.copy()
-        log.info("recovery: the cube was observed again at (%.4f, %.4f) m, yaw %.3f rad", *cube.translation[:2],
-                 cube_yaw(cube.rotation))
+        self.monitor.watch_object_at = obj.translation.copy()
+        log.info("recovery: the %s was observed again at (%.4f, %.4f) m, yaw %.3f rad", name, *obj.translation[:2],
+                 object_yaw(obj.rotation))
         return Phase.PLAN_APPROACH
 
     def _fail(self, phase: Phase, exc: PickPlaceError) -> None:
@@ -833,7 +853,7 @@ class PickPlaceMachine:
         log.info("episode failed in %s: %s", out.failure_phase.value, out.failure_reason)
 
     def _after_done(self) -> None:
-        """Keep simulating at home until ``stable_after_release_s`` after the release; measure the cube."""
+        """Keep simulating at home until ``stable_after_release_s`` after the release; measure the object."""
         remaining = self._release_t + self.cfg.stable_after_release_s - self.monitor.t
         self.monitor.phase = Phase.DONE.value
         try:
@@ -842,13 +862,14 @@ class PickPlaceMachine:
         except PickPlaceError as exc:
             self._fail(Phase.DONE, exc)
             return
-        cube = self._cube_pose()
-        err = cube.translation[:2] - self.robot.scene.goal_pos_m[:2]
+        obj = self._object_pose()
+        err = obj.translation[:2] - self.robot.scene.goal_pos_m[:2]
         self.out.final_place_error_xy_m = float(np.hypot(err[0], err[1]))
         tol = self.cfg.place_tolerance_xy_m
         if self.out.final_place_error_xy_m > tol:  # placed, then it moved: the place did not hold
             self._fail(Phase.RELEASE, PhaseFailed(
-                Phase.RELEASE, f"the cube moved after the release: it rests {self.out.final_place_error_xy_m * 1e3:.2f}"
+                Phase.RELEASE, f"the {self.robot.scene.object.name} moved after the release: it rests "
+                f"{self.out.final_place_error_xy_m * 1e3:.2f}"
                 f" mm from the goal {self.cfg.stable_after_release_s:g} s after it (tolerance {tol * 1e3:.2f} mm)"))
 
 

@@ -1,4 +1,4 @@
-"""The per-step monitor of an episode: unexpected contacts, slip in the grip, a resting cube that moves.
+"""The per-step monitor of an episode: unexpected contacts, slip in the grip, a resting object that moves.
 
 Manipulation fails quietly, so these checks run after *every* simulation step of every phase (the control
 loops call the monitor as their hook) and raise the moment something is wrong, naming what they saw.
@@ -30,12 +30,12 @@ class UnexpectedContact(PickPlaceError):
         super().__init__(f"unexpected contact at t = {t_s:.3f} s: {names}")
 
 
-class CubeMoved(PickPlaceError):
-    """The resting cube is no longer where it was observed (it was pushed, or knocked)."""
+class ObjectMoved(PickPlaceError):
+    """The resting object is no longer where it was observed (it was pushed, or knocked)."""
 
 
 # Contact classes of the simulation's geoms, for the per-step contact monitor.
-_ARM, _GRIPPER, _PAD, _CUBE, _TABLE, _ENV = range(6)
+_ARM, _GRIPPER, _PAD, _OBJECT, _TABLE, _ENV = range(6)
 
 
 class StepMonitor:
@@ -43,13 +43,13 @@ class StepMonitor:
 
     Called as the control loops' hook. It advances the episode time, records telemetry, and raises as soon
     as something is wrong: :class:`UnexpectedContact`, :class:`~pickplace.errors.GraspFailed` (slip),
-    :class:`CubeMoved`, or whatever the trajectory predictor raises. The state machine switches the
-    checks on and off as the phases require (``allow_*``, ``holding``, ``watch_cube_at``, ``predictor``).
+    :class:`ObjectMoved`, or whatever the trajectory predictor raises. The state machine switches the
+    checks on and off as the phases require (``allow_*``, ``holding``, ``watch_object_at``, ``predictor``).
 
     Args:
         robot: The models.
         recorder: Telemetry, or None.
-        slip_tolerance_m: Largest allowed motion of the held cube in the tcp frame (m).
+        slip_tolerance_m: Largest allowed motion of the held object in the tcp frame (m).
         injector: Timed faults to apply after each step, or None.
     """
 
@@ -66,41 +66,42 @@ class StepMonitor:
         self.t = 0.0
         self.phase = "IDLE"  # name of the running phase
         self.slip_tolerance_m = slip_tolerance_m
+        self.name = robot.scene.object.name  # how the object is called in failure messages
         table = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "table")
         cls = np.full(m.ngeom, _ENV)
         cls[np.isin(m.geom_bodyid, list(h.robot_bodies))] = _ARM
         cls[np.isin(m.geom_bodyid, list(h.gripper_bodies))] = _GRIPPER
         cls[h.pad_geoms] = _PAD
         cls[m.geom_bodyid == table] = _TABLE
-        cls[h.cube_geom] = _CUBE
+        cls[h.object_geoms] = _OBJECT
         self.cls = cls
-        self.allow_hand_cube = False  # gripper/pads touching the cube
-        self.allow_cube_table = True
+        self.allow_hand_object = False  # gripper/pads touching the object
+        self.allow_object_table = True
         self.holding = False  # slip is checked
         self.tolerate_contacts = False  # backing off a collision: contacts are expected until clear
-        self.watch_cube_at: np.ndarray | None = None  # where the resting cube was observed (m)
+        self.watch_object_at: np.ndarray | None = None  # where the resting object was observed (m)
         self.watch_tolerance_m = 0.005
-        self._p_tcp_cube0 = np.zeros(3)
+        self._p_tcp_object0 = np.zeros(3)
         self.slip_max_m = 0.0
         self.slip_now_m = 0.0
 
     def start_holding(self, d: mujoco.MjData) -> None:
-        """Take the cube's current position in the tcp frame as the reference for slip."""
-        self._p_tcp_cube0 = self._p_tcp_cube(d)
+        """Take the object's current position in the tcp frame as the reference for slip."""
+        self._p_tcp_object0 = self._p_tcp_object(d)
         self.holding = True
 
-    def _p_tcp_cube(self, d: mujoco.MjData) -> np.ndarray:
+    def _p_tcp_object(self, d: mujoco.MjData) -> np.ndarray:
         h = self.robot.handles
         R = d.site_xmat[h.tcp_site].reshape(3, 3)
-        return R.T @ (d.xpos[h.cube_body] - d.site_xpos[h.tcp_site])
+        return R.T @ (d.xpos[h.object_body] - d.site_xpos[h.tcp_site])
 
     def allowed(self, a: int, b: int) -> bool:
         """Whether a contact between geom classes a and b is allowed now."""
         lo, hi = min(a, b), max(a, b)
-        if hi == _CUBE and lo in (_GRIPPER, _PAD):
-            return self.allow_hand_cube
-        if (lo, hi) == (_CUBE, _TABLE):
-            return self.allow_cube_table
+        if hi == _OBJECT and lo in (_GRIPPER, _PAD):
+            return self.allow_hand_object
+        if (lo, hi) == (_OBJECT, _TABLE):
+            return self.allow_object_table
         return False
 
     def __call__(self, d: mujoco.MjData) -> None:
@@ -118,17 +119,18 @@ class StepMonitor:
                                 for a, b in bad})
                 raise UnexpectedContact(pairs, self.t)  # type: ignore[arg-type]
         if self.holding:
-            slip = float(np.linalg.norm(self._p_tcp_cube(d) - self._p_tcp_cube0))
+            slip = float(np.linalg.norm(self._p_tcp_object(d) - self._p_tcp_object0))
             self.slip_now_m = slip
             self.slip_max_m = max(self.slip_max_m, slip)
             if slip > self.slip_tolerance_m:
-                raise GraspFailed(f"the cube slipped {slip * 1e3:.2f} mm in the grip at t = {self.t:.3f} s "
+                raise GraspFailed(f"the {self.name} slipped {slip * 1e3:.2f} mm in the grip at t = {self.t:.3f} s "
                                   f"(tolerance {self.slip_tolerance_m * 1e3:.2f} mm)")
-        if self.watch_cube_at is not None:
-            moved = float(np.linalg.norm(d.xpos[self.robot.handles.cube_body] - self.watch_cube_at))
+        if self.watch_object_at is not None:
+            moved = float(np.linalg.norm(d.xpos[self.robot.handles.object_body] - self.watch_object_at))
             if moved > self.watch_tolerance_m:
-                self.watch_cube_at = None
-                raise CubeMoved(f"the cube moved {moved * 1e3:.1f} mm from where it was observed (t = {self.t:.3f} s)")
+                self.watch_object_at = None
+                raise ObjectMoved(f"the {self.name} moved {moved * 1e3:.1f} mm from where it was observed "
+                                  f"(t = {self.t:.3f} s)")
         self._steps += 1
         if self.predictor is not None and self._steps % self.predict_every == 0:
             self.predictor(d, self.t)
@@ -136,4 +138,4 @@ class StepMonitor:
             self.injector.step(d, self.phase, self.t)
 
 
-__all__ = ["CubeMoved", "StepMonitor", "UnexpectedContact"]
+__all__ = ["ObjectMoved", "StepMonitor", "UnexpectedContact"]

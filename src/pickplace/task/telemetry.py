@@ -1,7 +1,7 @@
 """What happened during an episode, sampled from the simulation: the input of plots and videos.
 
 A :class:`TelemetryRecorder` is called once per simulation step by the state machine; it keeps a few
-numbers per step (time, phase, arm joints, tcp and cube positions, pad forces) and the full ``qpos`` at
+numbers per step (time, phase, arm joints, tcp and object positions, pad forces) and the full ``qpos`` at
 the video frame rate. :meth:`TelemetryRecorder.freeze` returns the immutable :class:`Telemetry`.
 """
 
@@ -43,12 +43,12 @@ class Telemetry:
         phase_names: Names of the phases, in the order they were first entered.
         q: Arm joints (N, 6) (rad).
         tcp_pos_m: Tcp position in the world (N, 3) (m).
-        cube_pos_m: Cube centre in the world (N, 3) (m).
+        object_pos_m: Object origin in the world (N, 3) (m).
         pad_force_n: Normal force on the left and right pad (N, 2) (N).
         joint_segments: Reference vs measured joints of each tracked trajectory.
         frame_t_s: Time of each video frame (F,) (s).
         frame_qpos: Full MuJoCo ``qpos`` at each video frame (F, nq).
-        goal_pos_m: The cube's goal centre (3,) (m).
+        goal_pos_m: The object's goal position (3,) (m).
     """
 
     t_s: np.ndarray
@@ -56,7 +56,7 @@ class Telemetry:
     phase_names: tuple[str, ...]
     q: np.ndarray
     tcp_pos_m: np.ndarray
-    cube_pos_m: np.ndarray
+    object_pos_m: np.ndarray
     pad_force_n: np.ndarray
     joint_segments: tuple[JointSegment, ...]
     frame_t_s: np.ndarray
@@ -82,7 +82,7 @@ class TelemetryRecorder:
     Args:
         robot: The models (for the handles).
         frame_rate_hz: Video frames per simulated second (0 disables frame capture).
-        goal_pos_m: The cube's goal centre (3,) (m).
+        goal_pos_m: The object's goal position (3,) (m).
     """
 
     robot: Robot
@@ -93,7 +93,7 @@ class TelemetryRecorder:
     _names: dict[str, int] = field(default_factory=dict, repr=False)
     _q: list[np.ndarray] = field(default_factory=list, repr=False)
     _tcp: list[np.ndarray] = field(default_factory=list, repr=False)
-    _cube: list[np.ndarray] = field(default_factory=list, repr=False)
+    _object: list[np.ndarray] = field(default_factory=list, repr=False)
     _force: list[np.ndarray] = field(default_factory=list, repr=False)
     _segments: list[JointSegment] = field(default_factory=list, repr=False)
     _frame_t: list[float] = field(default_factory=list, repr=False)
@@ -107,7 +107,7 @@ class TelemetryRecorder:
         self._phase.append(self._names.setdefault(phase, len(self._names)))
         self._q.append(d.qpos[h.arm_qpos].copy())
         self._tcp.append(d.site_xpos[h.tcp_site].copy())
-        self._cube.append(d.xpos[h.cube_body].copy())
+        self._object.append(d.xpos[h.object_body].copy())
         self._force.append(pad_forces(self.robot, d))
         if self.frame_rate_hz > 0 and t_s >= self._next_frame_s - 1e-9:
             self._frame_t.append(t_s)
@@ -133,7 +133,7 @@ class TelemetryRecorder:
         for a in (t, phase, frame_t):
             a.setflags(write=False)
         names = tuple(sorted(self._names, key=self._names.__getitem__))
-        return Telemetry(t, phase, names, arr(self._q, 6), arr(self._tcp, 3), arr(self._cube, 3),
+        return Telemetry(t, phase, names, arr(self._q, 6), arr(self._tcp, 3), arr(self._object, 3),
                          arr(self._force, 2), tuple(self._segments), frame_t, arr(self._frames, nq),
                          np.asarray(self.goal_pos_m, dtype=float).copy())
 

@@ -10,99 +10,34 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
 import numpy as np
 
 from pickplace.errors import ConfigError
+from pickplace.world.checks import check_finite, check_int, check_range, check_vector
+from pickplace.world.objects import MAX_GRIP_WIDTH_M, MIN_GRIP_WIDTH_M, ObjectConfig
 
 T = TypeVar("T")
-
-# --------------------------------------------------------------------------- #
-# validation helpers (shared by every config)
-# --------------------------------------------------------------------------- #
-
-
-def check_finite(name: str, value: float) -> float:
-    """Return ``value`` as a float, or raise if it is not a finite number (strings are not numbers)."""
-    if isinstance(value, (str, bytes)):
-        raise ConfigError(name, value, "must be a finite number")
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ConfigError(name, value, "must be a finite number") from None
-    if isinstance(value, bool) or not math.isfinite(v):
-        raise ConfigError(name, value, "must be a finite number")
-    return v
-
-
-def check_range(
-    name: str,
-    value: float,
-    lo: float | None = None,
-    hi: float | None = None,
-    *,
-    lo_open: bool = False,
-    hi_open: bool = False,
-    unit: str = "",
-) -> float:
-    """Check that ``value`` is finite and inside ``[lo, hi]`` (or the open variants).
-
-    Returns:
-        The value as a float.
-    """
-    v = check_finite(name, value)
-    lo_ok = lo is None or (v > lo if lo_open else v >= lo)
-    hi_ok = hi is None or (v < hi if hi_open else v <= hi)
-    if not (lo_ok and hi_ok):
-        left = "" if lo is None else f"{'>' if lo_open else '>='} {lo:g}"
-        right = "" if hi is None else f"{'<' if hi_open else '<='} {hi:g}"
-        allowed = " and ".join(s for s in (left, right) if s)
-        raise ConfigError(name, value, f"must be {allowed}{' ' + unit if unit else ''}")
-    return v
-
-
-def check_int(name: str, value: int, lo: int, hi: int | None = None) -> int:
-    """Check that ``value`` is an integer in ``[lo, hi]``."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise ConfigError(name, value, "must be an integer")
-    if value < lo or (hi is not None and value > hi):
-        raise ConfigError(name, value, f"must be >= {lo}" + (f" and <= {hi}" if hi is not None else ""))
-    return int(value)
-
-
-def check_vector(
-    name: str,
-    value: Sequence[float],
-    size: int,
-    lo: float | None = None,
-    hi: float | None = None,
-    *,
-    lo_open: bool = False,
-    unit: str = "",
-) -> tuple[float, ...]:
-    """Check a fixed-size vector of finite numbers, each in range; return it as a tuple."""
-    try:
-        items = list(value)
-    except TypeError:
-        raise ConfigError(name, value, f"must be a sequence of {size} numbers") from None
-    if len(items) != size:
-        raise ConfigError(name, value, f"must have exactly {size} elements")
-    return tuple(
-        check_range(f"{name}[{i}]", v, lo, hi, lo_open=lo_open, unit=unit) for i, v in enumerate(items)
-    )
-
 
 # --------------------------------------------------------------------------- #
 # scene
 # --------------------------------------------------------------------------- #
 
 #: Largest cube edge the gripper can take with 5 mm clearance per side (m); see gripper.xml.
-MAX_CUBE_SIZE_M = 0.074
+MAX_CUBE_SIZE_M = MAX_GRIP_WIDTH_M
 #: Smallest cube edge the closed gripper still squeezes (m); see gripper.xml.
-MIN_CUBE_SIZE_M = 0.010
+MIN_CUBE_SIZE_M = MIN_GRIP_WIDTH_M
+
+#: ``[scene]`` keys of the cube-only scene of earlier versions, still accepted in TOML and on the command line:
+#: each maps to the object's field (``object.*``) or to the scene's new name.
+LEGACY_SCENE_KEYS = {
+    "cube_start_xy_m": "start_xy_m", "cube_yaw_rad": "start_yaw_rad", "cube_size_m": "object.size_m",
+    "cube_mass_kg": "object.mass_kg", "cube_friction": "object.friction",
+    "cube_torsional_friction_m": "object.torsional_friction_m",
+}
 
 
 @dataclass(frozen=True)
@@ -110,14 +45,11 @@ class SceneConfig:
     """The world the robot works in. Positions are in the world frame (m), robot base at the origin.
 
     Attributes:
-        cube_size_m: Edge length of the cube (m).
-        cube_mass_kg: Mass of the cube (kg).
-        cube_friction: Coulomb sliding friction coefficient of every contact with the cube.
-        cube_torsional_friction_m: Torsional friction coefficient (m) of cube contacts (condim 4).
-        cube_start_xy_m: Where the cube's centre starts on the table (x, y) (m).
-        cube_yaw_rad: The cube's initial rotation about world z (rad).
-        goal_xy_m: Where the cube's centre must be placed (x, y) (m).
-        goal_yaw_rad: The cube's yaw at the goal (rad), modulo the cube's 90° symmetry.
+        object: The object to pick and place (default: the 40 mm cube).
+        start_xy_m: Where the object's origin starts on the table (x, y) (m).
+        start_yaw_rad: The object's initial rotation about world z from its resting frame (rad).
+        goal_xy_m: Where the object's origin must be placed (x, y) (m).
+        goal_yaw_rad: The object's yaw at the goal (rad), modulo its symmetry (``object.yaw_period_rad``).
         table_height_m: Height of the table surface above the floor (m).
         table_center_xy_m: Centre of the table top (x, y) (m).
         table_size_xy_m: Extent of the table top (x, y) (m).
@@ -130,12 +62,9 @@ class SceneConfig:
         timestep_s: Simulation time step (s).
     """
 
-    cube_size_m: float = 0.040
-    cube_mass_kg: float = 0.150
-    cube_friction: float = 1.0
-    cube_torsional_friction_m: float = 0.005
-    cube_start_xy_m: tuple[float, float] = (0.35, 0.20)
-    cube_yaw_rad: float = 0.0
+    object: ObjectConfig = field(default_factory=ObjectConfig)
+    start_xy_m: tuple[float, float] = (0.35, 0.20)
+    start_yaw_rad: float = 0.0
     goal_xy_m: tuple[float, float] = (0.35, -0.20)
     goal_yaw_rad: float = 0.0
     table_height_m: float = 0.315
@@ -150,16 +79,10 @@ class SceneConfig:
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
-        set_(self, "cube_size_m", check_range("scene.cube_size_m", self.cube_size_m,
-                                               MIN_CUBE_SIZE_M, MAX_CUBE_SIZE_M, unit="m"))
-        set_(self, "cube_mass_kg", check_range("scene.cube_mass_kg", self.cube_mass_kg, 0.0, 5.0,
-                                                lo_open=True, unit="kg (UR5e payload is 5 kg)"))
-        set_(self, "cube_friction", check_range("scene.cube_friction", self.cube_friction, 0.0, 5.0,
-                                                 lo_open=True))
-        set_(self, "cube_torsional_friction_m", check_range(
-            "scene.cube_torsional_friction_m", self.cube_torsional_friction_m, 0.0, 0.1, unit="m"))
-        set_(self, "cube_start_xy_m", check_vector("scene.cube_start_xy_m", self.cube_start_xy_m, 2, unit="m"))
-        set_(self, "cube_yaw_rad", check_range("scene.cube_yaw_rad", self.cube_yaw_rad,
+        if not isinstance(self.object, ObjectConfig):
+            raise ConfigError("scene.object", self.object, "must be an ObjectConfig (the [object] table)")
+        set_(self, "start_xy_m", check_vector("scene.start_xy_m", self.start_xy_m, 2, unit="m"))
+        set_(self, "start_yaw_rad", check_range("scene.start_yaw_rad", self.start_yaw_rad,
                                                 -2 * math.pi, 2 * math.pi, unit="rad"))
         set_(self, "goal_xy_m", check_vector("scene.goal_xy_m", self.goal_xy_m, 2, unit="m"))
         set_(self, "goal_yaw_rad", check_range("scene.goal_yaw_rad", self.goal_yaw_rad,
@@ -181,43 +104,109 @@ class SceneConfig:
         set_(self, "obstacle_offset_xy_m", check_vector("scene.obstacle_offset_xy_m", self.obstacle_offset_xy_m,
                                                          2, -0.5, 0.5, unit="m"))
         set_(self, "timestep_s", check_range("scene.timestep_s", self.timestep_s, 1e-4, 0.005, unit="s"))
-        self._check_on_table("scene.cube_start_xy_m", self.cube_start_xy_m)
+        self._check_on_table("scene.start_xy_m", self.start_xy_m)
         # The goal is checked by check_goal_on_table(), after its reachability: a goal far out of the
         # arm's reach must be reported as unreachable, which only the kinematics can tell.
 
     def check_goal_on_table(self) -> None:
-        """Raise :class:`ConfigError` unless the cube's footprint at the goal (any yaw) lies on the table."""
+        """Raise :class:`ConfigError` unless the object's footprint at the goal (any yaw) lies on the table."""
         self._check_on_table("scene.goal_xy_m", self.goal_xy_m)
 
     def _check_on_table(self, name: str, xy: tuple[float, float]) -> None:
-        """The cube's whole footprint (any yaw) must lie on the table top."""
-        r = self.cube_size_m * math.sqrt(0.5)  # half-diagonal: the footprint radius at any yaw
+        """The object's whole footprint (any yaw) must lie on the table top."""
+        r = self.footprint_radius_m
         for i, axis in enumerate("xy"):
             lo = self.table_center_xy_m[i] - self.table_size_xy_m[i] / 2 + r
             hi = self.table_center_xy_m[i] + self.table_size_xy_m[i] / 2 - r
             if not lo <= xy[i] <= hi:
                 raise ConfigError(
                     name, tuple(xy),
-                    f"the cube must lie on the table: {axis} must be in [{lo:.3f}, {hi:.3f}] m",
+                    f"the {self.object.name} must lie on the table: {axis} must be in [{lo:.3f}, {hi:.3f}] m",
                 )
 
     @property
-    def cube_start_z_m(self) -> float:
-        """Height of the cube's centre resting on the table (m)."""
-        return self.table_height_m + self.cube_size_m / 2
+    def footprint_radius_m(self) -> float:
+        """Largest horizontal distance of the object's surface from its origin, at rest (m)."""
+        v = self.object.geometry().vertices
+        return float(np.max(np.hypot(v[:, 0], v[:, 1])))
 
     @property
-    def cube_start_pos_m(self) -> np.ndarray:
-        """The cube's initial centre (3,) in the world (m)."""
-        return np.array([*self.cube_start_xy_m, self.cube_start_z_m])
+    def rest_z_m(self) -> float:
+        """Height of the object's origin when it rests on the table (m)."""
+        return self.table_height_m - self.object.geometry().z_min_m
+
+    @property
+    def start_pos_m(self) -> np.ndarray:
+        """The object's initial origin (3,) in the world (m)."""
+        return np.array([*self.start_xy_m, self.rest_z_m])
 
     @property
     def goal_pos_m(self) -> np.ndarray:
-        """Where the cube's centre must come to rest (3,) in the world (m)."""
-        return np.array([*self.goal_xy_m, self.cube_start_z_m])
+        """Where the object's origin must come to rest (3,) in the world (m)."""
+        return np.array([*self.goal_xy_m, self.rest_z_m])
+
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, Any], base: SceneConfig | None = None,
+                     object_data: Mapping[str, Any] | None = None) -> SceneConfig:
+        """From a TOML ``[scene]`` table (and an ``[object]`` table), legacy ``cube_*`` keys included.
+
+        ``cube_size_m`` makes the object a cube of that edge (only if it is a box); the other ``cube_*`` keys
+        set the object's mass and friction or the start pose (:data:`LEGACY_SCENE_KEYS`).
+        """
+        if not isinstance(data, Mapping):
+            raise ConfigError("scene", data, "must be a table of keys")
+        start = base if base is not None else cls()
+        obj = start.object if object_data is None else ObjectConfig.from_mapping(object_data, start.object)
+        data = dict(data)
+        if isinstance(data.get("object"), ObjectConfig):  # a whole object, from Python
+            obj = data.pop("object")
+        scene_changes: dict[str, Any] = {}
+        for key, value in data.items():
+            target = LEGACY_SCENE_KEYS.get(key, key)
+            if target.startswith("object."):
+                obj = _legacy_object_change(obj, key, target.split(".", 1)[1], value)
+            else:
+                scene_changes[target] = value
+        names = [f.name for f in dataclasses.fields(cls) if f.name != "object"]
+        for key, value in scene_changes.items():
+            if key not in names:
+                raise ConfigError(f"scene.{key}", value, f"unknown key; allowed: {', '.join(names)} (and the "
+                                                         f"legacy {', '.join(LEGACY_SCENE_KEYS)})")
+        changes = {k: tuple(v) if isinstance(v, list) else v for k, v in scene_changes.items()}
+        try:
+            return dataclasses.replace(start, object=obj, **changes)
+        except ConfigError as exc:  # name the key the user wrote, if it was a legacy one
+            for old, new in LEGACY_SCENE_KEYS.items():
+                if old in data and exc.field.startswith(f"scene.{new}"):
+                    raise ConfigError(exc.field.replace(f"scene.{new}", f"scene.{old}", 1), exc.value,
+                                      exc.allowed) from None
+            raise
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data (the ``[scene]`` table; the object is its own table, :meth:`ObjectConfig.to_dict`)."""
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "object"}
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
+
+    def with_object(self, **changes: Any) -> SceneConfig:
+        """A copy whose object has some fields changed (validated)."""
+        return dataclasses.replace(self, object=dataclasses.replace(self.object, **changes))
 
 
-def from_mapping(cls: type[T], data: Mapping[str, Any], section: str, base: T | None = None) -> T:
+def _legacy_object_change(obj: ObjectConfig, key: str, fld: str, value: Any) -> ObjectConfig:
+    """Apply a legacy ``cube_*`` scene key to the object."""
+    if fld == "size_m":
+        if obj.kind != "box":
+            raise ConfigError(f"scene.{key}", value, f"sets a cube's edge; the object is a {obj.kind} (use [object])")
+        edge = check_range(f"scene.{key}", value, MIN_GRIP_WIDTH_M, MAX_GRIP_WIDTH_M, unit="m")
+        return dataclasses.replace(obj, size_m=(edge, edge, edge))
+    try:
+        return dataclasses.replace(obj, **{fld: value})
+    except ConfigError as exc:  # name the key the user wrote
+        raise ConfigError(f"scene.{key}", value, exc.allowed) from None
+
+
+def from_mapping(cls: type[T], data: Mapping[str, Any], section: str, base: T | None = None,
+                 aliases: Mapping[str, str] | None = None) -> T:
     """Build the frozen config dataclass ``cls`` from a mapping (e.g. one TOML table).
 
     Lists become tuples; every value is then validated by the class itself.
@@ -225,13 +214,16 @@ def from_mapping(cls: type[T], data: Mapping[str, Any], section: str, base: T | 
     Args:
         cls: The config class.
         data: Field name -> value.
-        section: Name used in errors (``"scene"`` gives ``scene.cube_mass_kg``).
+        section: Name used in errors (``"faults"`` gives ``faults.mass_scale``).
         base: Defaults to start from (default: ``cls()``).
+        aliases: Older key names still accepted, old -> field.
 
     Raises:
         ConfigError: an unknown key (the allowed ones are listed) or an invalid value.
     """
     names = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]
+    aliases = aliases or {}
+    data = {aliases.get(k, k): v for k, v in data.items()}
     for key, value in data.items():
         if key not in names:
             raise ConfigError(f"{section}.{key}", value, f"unknown key; allowed: {', '.join(names)}")
@@ -241,6 +233,7 @@ def from_mapping(cls: type[T], data: Mapping[str, Any], section: str, base: T | 
 
 
 __all__ = [
+    "LEGACY_SCENE_KEYS",
     "MAX_CUBE_SIZE_M",
     "MIN_CUBE_SIZE_M",
     "SceneConfig",

@@ -1,7 +1,7 @@
 """Planning benchmark: pickplace's RRT* against OMPL's RRTConnect and RRT* on the pick-and-place segments.
 
 On the default scene and the obstacle scene (a wall between start and goal) every planner solves two
-segments once per seed: ``home->pregrasp`` (gripper open, cube resting) and ``pregrasp->preplace`` (cube
+segments once per seed: ``home->pregrasp`` (gripper open, object resting) and ``pregrasp->preplace`` (object
 carried), with the same kind of :class:`CollisionChecker` (margin 1 cm) and the same time budget. Each final
 path is then retimed with TOPP-RA (``TimingConfig.ur5e()``) and re-checked every 0.01 rad at margin 0.
 

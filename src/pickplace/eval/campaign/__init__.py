@@ -1,7 +1,7 @@
 """Evaluation campaigns: many randomized episodes, on local processes or a Ray cluster, persisted and resumable.
 
 A campaign is a base :class:`~pickplace.task.episode.EpisodeConfig`, a :class:`RandomizationSpec` (ranges of the
-cube's start, yaw, mass, size and friction and of the goal) and a number of trials. Trial ``i`` draws its
+object's start, yaw, mass, size and friction and of the goal) and a number of trials. Trial ``i`` draws its
 scene and its episode seed from the campaign seed and ``i`` only, not from the number of trials, the workers or
 the backend, so any trial can be re-run alone (:func:`trial_config`, or ``pickplace run --config
 OUT/trials/trial_0007.toml --seed S`` with the file written for every failed trial).

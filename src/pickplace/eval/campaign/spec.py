@@ -22,7 +22,8 @@ import numpy as np
 
 from pickplace.errors import ConfigError, PickPlaceError
 from pickplace.task.episode import EpisodeConfig, EpisodeResult
-from pickplace.world.config import MAX_CUBE_SIZE_M, MIN_CUBE_SIZE_M, check_int, check_range, check_vector
+from pickplace.world.config import check_int, check_range, check_vector
+from pickplace.world.objects import ObjectConfig, scaled
 
 log = logging.getLogger(__name__)
 
@@ -40,21 +41,28 @@ class CampaignError(PickPlaceError):
 
 Range = tuple[float, float]
 
-#: Per field of RandomizationSpec: (bounds of the range, unit, scene field it changes, offset or absolute).
+#: Per field of RandomizationSpec: (bounds of the range, unit, what it changes).
 _SPEC_FIELDS: dict[str, tuple[float, float, str, str]] = {
-    "cube_dx_m": (-0.5, 0.5, "m", "offset"),
-    "cube_dy_m": (-0.5, 0.5, "m", "offset"),
-    "cube_dyaw_rad": (-math.pi, math.pi, "rad", "offset"),
+    "start_dx_m": (-0.5, 0.5, "m", "offset"),
+    "start_dy_m": (-0.5, 0.5, "m", "offset"),
+    "start_dyaw_rad": (-math.pi, math.pi, "rad", "offset"),
     "goal_dx_m": (-0.5, 0.5, "m", "offset"),
     "goal_dy_m": (-0.5, 0.5, "m", "offset"),
     "goal_dyaw_rad": (-math.pi, math.pi, "rad", "offset"),
-    "cube_mass_kg": (1e-3, 5.0, "kg", "absolute"),
-    "cube_size_m": (MIN_CUBE_SIZE_M, MAX_CUBE_SIZE_M, "m", "absolute"),
-    "cube_friction": (0.05, 5.0, "", "absolute"),
+    "object_mass_scale": (1e-3, 100.0, "", "object"),
+    "object_size_scale": (0.1, 5.0, "", "object"),
+    "object_friction": (0.05, 5.0, "", "object"),
     "transport_push_n": (0.0, 200.0, "N", "perturbation"),
     "pad_friction_scale": (0.0, 5.0, "", "fault"),
-    "cube_mass_scale": (0.01, 50.0, "", "fault"),
+    "true_mass_scale": (0.01, 50.0, "", "fault"),
     "joint_noise_rad": (0.0, 0.05, "rad", "fault"),
+}
+#: ``[randomization]`` keys of earlier versions: old name -> field, and how a range converts (``None``: as is;
+#: ``"mass"``: divided by the base object's mass; ``"edge"``: divided by the base cube's edge).
+LEGACY_SPEC_KEYS: dict[str, tuple[str, str | None]] = {
+    "cube_dx_m": ("start_dx_m", None), "cube_dy_m": ("start_dy_m", None), "cube_dyaw_rad": ("start_dyaw_rad", None),
+    "cube_mass_kg": ("object_mass_scale", "mass"), "cube_size_m": ("object_size_scale", "edge"),
+    "cube_friction": ("object_friction", None), "cube_mass_scale": ("true_mass_scale", None),
 }
 #: The first fields of _SPEC_FIELDS; the push's direction and start are drawn right after them, and any field
 #: added later after those, so that adding a field never changes the values of the existing ones.
@@ -69,38 +77,40 @@ PUSH_START_S = (0.05, 0.5)
 class RandomizationSpec:
     """Ranges ``(lo, hi)`` sampled uniformly per trial; ``None`` keeps the base config's value.
 
-    The ``d`` fields are offsets added to the base config's value; the others replace it.
+    The ``d`` fields are offsets added to the base config's value, the ``scale`` fields multiply it, the others
+    replace it. The defaults are ranges around the base object: for the 40 mm, 150 g cube they are the same
+    draws as the cube-only ranges of earlier versions (mass 0.05-0.5 kg, edge 30-50 mm).
 
     Attributes:
-        cube_dx_m: Offset of the cube's start x (m).
-        cube_dy_m: Offset of the cube's start y (m).
-        cube_dyaw_rad: Offset of the cube's start yaw (rad).
+        start_dx_m: Offset of the object's start x (m).
+        start_dy_m: Offset of the object's start y (m).
+        start_dyaw_rad: Offset of the object's start yaw (rad).
         goal_dx_m: Offset of the goal x (m).
         goal_dy_m: Offset of the goal y (m).
         goal_dyaw_rad: Offset of the goal yaw (rad).
-        cube_mass_kg: Cube mass (kg).
-        cube_size_m: Cube edge length (m).
-        cube_friction: Friction coefficient of every contact with the cube.
-        transport_push_n: Magnitude of a push on the carried cube (N), off by default. Its direction is drawn
+        object_mass_scale: The object's mass relative to the base config's.
+        object_size_scale: Every dimension of the object relative to the base config's.
+        object_friction: Friction coefficient of every contact with the object.
+        transport_push_n: Magnitude of a push on the carried object (N), off by default. Its direction is drawn
             uniformly on the sphere and its start uniformly in ``PUSH_START_S`` after the transport starts;
             it lasts the base config's ``faults.transport_push_s``, or ``PUSH_DURATION_S``.
         pad_friction_scale: The ``faults.pad_friction_scale`` of each trial, off by default.
-        cube_mass_scale: The ``faults.cube_mass_scale`` of each trial (true / believed mass), off by default.
+        true_mass_scale: The ``faults.true_mass_scale`` of each trial (true / believed mass), off by default.
         joint_noise_rad: The ``faults.joint_noise_rad`` of each trial (rad), off by default.
     """
 
-    cube_dx_m: Range | None = (-0.05, 0.05)
-    cube_dy_m: Range | None = (-0.05, 0.05)
-    cube_dyaw_rad: Range | None = (-math.pi / 4, math.pi / 4)
+    start_dx_m: Range | None = (-0.05, 0.05)
+    start_dy_m: Range | None = (-0.05, 0.05)
+    start_dyaw_rad: Range | None = (-math.pi / 4, math.pi / 4)
     goal_dx_m: Range | None = (-0.05, 0.05)
     goal_dy_m: Range | None = (-0.05, 0.05)
     goal_dyaw_rad: Range | None = (0.0, 0.0)
-    cube_mass_kg: Range | None = (0.05, 0.5)
-    cube_size_m: Range | None = (0.03, 0.05)
-    cube_friction: Range | None = (0.6, 1.5)
+    object_mass_scale: Range | None = (1.0 / 3.0, 10.0 / 3.0)
+    object_size_scale: Range | None = (0.75, 1.25)
+    object_friction: Range | None = (0.6, 1.5)
     transport_push_n: Range | None = None
     pad_friction_scale: Range | None = None
-    cube_mass_scale: Range | None = None
+    true_mass_scale: Range | None = None
     joint_noise_rad: Range | None = None
 
     def __post_init__(self) -> None:
@@ -119,24 +129,27 @@ class RandomizationSpec:
         return cls(**dict.fromkeys(_SPEC_FIELDS))
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> RandomizationSpec:
+    def from_dict(cls, data: Mapping[str, Any], base_object: ObjectConfig | None = None) -> RandomizationSpec:
         """Build from a ``[randomization]`` table: ``name = [lo, hi]``, or ``name = false`` to keep the base value.
 
-        Fields not given keep their defaults.
+        Fields not given keep their defaults. The keys of earlier versions (:data:`LEGACY_SPEC_KEYS`) are
+        converted: an absolute ``cube_mass_kg`` or ``cube_size_m`` range becomes a scale of ``base_object``.
         """
         if not isinstance(data, Mapping):
             raise ConfigError("randomization", data, "must be a table of keys")
+        base_object = base_object if base_object is not None else ObjectConfig()
         changes: dict[str, Any] = {}
         for key, value in data.items():
-            if key not in _SPEC_FIELDS:
+            name, convert = LEGACY_SPEC_KEYS.get(key, (key, None))
+            if name not in _SPEC_FIELDS:
                 raise ConfigError(f"randomization.{key}", value, f"unknown key; allowed: {', '.join(_SPEC_FIELDS)}")
             if value is False:
-                changes[key] = None
+                changes[name] = None
             elif isinstance(value, (list, tuple)):
-                changes[key] = tuple(value)
+                changes[name] = _legacy_range(key, value, convert, base_object)
             else:
                 raise ConfigError(f"randomization.{key}", value,
-                                  "must be a range of two numbers lo <= hi (e.g. [0.05, 0.5]) or false")
+                                  "must be a range of two numbers lo <= hi (e.g. [0.5, 2.0]) or false")
         return cls(**changes)
 
     def to_dict(self) -> dict[str, list[float] | bool]:
@@ -166,23 +179,47 @@ class RandomizationSpec:
         return out
 
 
+def _legacy_range(key: str, value: Any, convert: str | None, base: ObjectConfig) -> tuple[float, ...]:
+    """A range as given, or an old absolute cube range as a scale of the base object."""
+    rng = tuple(value)
+    if convert is None:
+        return rng
+    if convert == "edge":
+        if base.kind != "box":
+            raise ConfigError(f"randomization.{key}", value, f"is a cube's edge; the object is a {base.kind} "
+                                                             "(use object_size_scale)")
+        ref = base.size_m[0]
+    else:
+        ref = base.mass_kg
+    try:
+        return tuple(float(v) / ref for v in rng)
+    except (TypeError, ValueError):
+        raise ConfigError(f"randomization.{key}", value, "must be a range of two numbers lo <= hi") from None
+
+
 def apply_params(base: EpisodeConfig, params: Mapping[str, float]) -> EpisodeConfig:
     """The base config with sampled parameters (names of :class:`RandomizationSpec` fields) applied."""
     sc = base.scene
     changes: dict[str, Any] = {}
-    if "cube_dx_m" in params or "cube_dy_m" in params:
-        changes["cube_start_xy_m"] = (sc.cube_start_xy_m[0] + params.get("cube_dx_m", 0.0),
-                                      sc.cube_start_xy_m[1] + params.get("cube_dy_m", 0.0))
+    if "start_dx_m" in params or "start_dy_m" in params:
+        changes["start_xy_m"] = (sc.start_xy_m[0] + params.get("start_dx_m", 0.0),
+                                 sc.start_xy_m[1] + params.get("start_dy_m", 0.0))
     if "goal_dx_m" in params or "goal_dy_m" in params:
         changes["goal_xy_m"] = (sc.goal_xy_m[0] + params.get("goal_dx_m", 0.0),
                                 sc.goal_xy_m[1] + params.get("goal_dy_m", 0.0))
-    if "cube_dyaw_rad" in params:
-        changes["cube_yaw_rad"] = sc.cube_yaw_rad + params["cube_dyaw_rad"]
+    if "start_dyaw_rad" in params:
+        changes["start_yaw_rad"] = sc.start_yaw_rad + params["start_dyaw_rad"]
     if "goal_dyaw_rad" in params:
         changes["goal_yaw_rad"] = sc.goal_yaw_rad + params["goal_dyaw_rad"]
-    for name in ("cube_mass_kg", "cube_size_m", "cube_friction"):
-        if name in params:
-            changes[name] = params[name]
+    obj = sc.object
+    if "object_size_scale" in params:
+        obj = scaled(obj, params["object_size_scale"])
+    if "object_mass_scale" in params:
+        obj = dataclasses.replace(obj, mass_kg=obj.mass_kg * params["object_mass_scale"])
+    if "object_friction" in params:
+        obj = dataclasses.replace(obj, friction=params["object_friction"])
+    if obj != sc.object:
+        changes["object"] = obj
     config = base.with_scene(**changes) if changes else base
     if "transport_push_n" in params:
         az, el, mag = params["push_azimuth_rad"], params["push_elevation_rad"], params["transport_push_n"]
@@ -190,7 +227,7 @@ def apply_params(base: EpisodeConfig, params: Mapping[str, float]) -> EpisodeCon
         faults = dataclasses.replace(base.faults, transport_push_n=force, transport_push_start_s=params["push_start_s"],
                                      transport_push_s=base.faults.transport_push_s or PUSH_DURATION_S)
         config = dataclasses.replace(config, faults=faults)
-    faults = {name: params[name] for name in ("pad_friction_scale", "cube_mass_scale", "joint_noise_rad")
+    faults = {name: params[name] for name in ("pad_friction_scale", "true_mass_scale", "joint_noise_rad")
               if name in params}
     if faults:
         config = dataclasses.replace(config, faults=dataclasses.replace(config.faults, **faults))
@@ -199,16 +236,16 @@ def apply_params(base: EpisodeConfig, params: Mapping[str, float]) -> EpisodeCon
 
 #: Which randomization fields move each scene field (to name them in errors).
 _SCENE_TO_SPEC = {
-    "scene.cube_start_xy_m": ("cube_dx_m", "cube_dy_m", "cube_size_m"),
-    "scene.goal_xy_m": ("goal_dx_m", "goal_dy_m", "cube_size_m"),
-    "scene.cube_yaw_rad": ("cube_dyaw_rad",),
+    "scene.start_xy_m": ("start_dx_m", "start_dy_m", "object_size_scale"),
+    "scene.goal_xy_m": ("goal_dx_m", "goal_dy_m", "object_size_scale"),
+    "scene.start_yaw_rad": ("start_dyaw_rad",),
     "scene.goal_yaw_rad": ("goal_dyaw_rad",),
 }
 
 
 def _check_extremes(base: EpisodeConfig, spec: RandomizationSpec) -> None:
-    """Every corner of the randomization box gives a valid scene, with the cube on the table at start and goal."""
-    active = [name for name in spec.active() if _SPEC_FIELDS[name][3] in ("offset", "absolute")]  # scene fields
+    """Every corner of the randomization box gives a valid scene, with the object on the table at start and goal."""
+    active = [name for name in spec.active() if _SPEC_FIELDS[name][3] in ("offset", "object")]  # scene fields
     for corner in range(1 << len(active)):
         params = {name: getattr(spec, name)[(corner >> k) & 1] for k, name in enumerate(active)}
         try:

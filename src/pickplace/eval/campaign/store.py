@@ -13,7 +13,6 @@ glues two lines together.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import logging
 import math
@@ -207,6 +206,8 @@ def _toml_value(value: Any) -> str:
         return json.dumps(value, ensure_ascii=False)
     if isinstance(value, (list, tuple, np.ndarray)):
         return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, Mapping):  # an inline table (e.g. one part of a compound object)
+        return "{" + ", ".join(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in value.items() if v is not None) + "}"
     raise TypeError(f"cannot write {type(value).__name__} to TOML")
 
 
@@ -225,7 +226,7 @@ def toml_dumps(data: Mapping[str, Any], _prefix: str = "") -> str:
 
 def episode_config_toml(config: EpisodeConfig, header: str = "") -> str:
     """The full episode config as TOML for ``pickplace run --config`` (floats written exactly)."""
-    tables = {name: dataclasses.asdict(getattr(config, name)) for name in config.to_dict()}
+    tables = config.to_dict()
     comment = "".join(f"# {line}\n" for line in header.splitlines())
     return comment + ("\n" if comment else "") + toml_dumps(tables)
 
@@ -247,8 +248,9 @@ def load_campaign_toml(path: str | Path) -> tuple[EpisodeConfig, RandomizationSp
         The episode config (without the randomization table) and the spec (defaults if the table is absent).
     """
     data = read_toml(path)
-    spec = RandomizationSpec.from_dict(data.pop("randomization", {}))
-    return EpisodeConfig.from_dict(data), spec
+    randomization = data.pop("randomization", {})
+    base = EpisodeConfig.from_dict(data)
+    return base, RandomizationSpec.from_dict(randomization, base.scene.object)
 
 
 def load_campaign(out_dir: str | Path, *, workers: int | None = None, timeout_s: float = 60.0,
@@ -261,7 +263,8 @@ def load_campaign(out_dir: str | Path, *, workers: int | None = None, timeout_s:
         raise ConfigError("out", str(out_dir), f"holds no campaign ({p}: {exc.strerror or exc})") from None
     except json.JSONDecodeError as exc:
         raise ConfigError("out", str(p), f"is not valid JSON: {exc}") from None
-    return CampaignConfig(EpisodeConfig.from_dict(data["base"]), RandomizationSpec.from_dict(data["randomization"]),
+    base = EpisodeConfig.from_dict(data["base"])
+    return CampaignConfig(base, RandomizationSpec.from_dict(data["randomization"], base.scene.object),
                           trials if trials is not None else data["trials"], data["seed"], workers, timeout_s)
 
 

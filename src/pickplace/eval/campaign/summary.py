@@ -124,7 +124,7 @@ class CampaignSummary:
         retries_histogram: Trials per number of retries, by increasing retries, over every trial whose episode
             ran (all trials but the worker failures, which have no episode): the counts add up to
             ``trials - worker_failures``.
-        failed_before_motion: Failed trials rejected before the arm moved: failed in ``IDLE``, where the cube is
+        failed_before_motion: Failed trials rejected before the arm moved: failed in ``IDLE``, where the object is
             observed and the four targets solved (unreachable or blocked targets); nothing was simulated.
         failed_before_motion_rate: failed_before_motion / trials.
         failed_after_motion: Failed trials whose episode failed in a phase after ``IDLE``, from the approach's
