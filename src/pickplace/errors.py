@@ -100,3 +100,22 @@ class ControlError(PickPlaceError):
         self.reason = reason
         self.record = record
         super().__init__(f"{phase}: {reason}")
+
+
+class CannotHold(PickPlaceError):
+    """The pads cannot hold the object: its weight (or its inertia in a motion) needs more friction than the
+    squeeze gives, with the safety factor.
+
+    Attributes:
+        needed_n: Friction force the object needs, safety factor included (N).
+        available_n: Friction force the pads can transmit, ``2 mu F`` (N).
+    """
+
+    def __init__(self, name: str, needed_n: float, available_n: float, mass_kg: float, friction: float,
+                 pad_force_n: float, safety_factor: float, accel_m_s2: float = 9.81) -> None:
+        self.needed_n = needed_n
+        self.available_n = available_n
+        super().__init__(
+            f"the pads cannot hold the {name}: it needs {needed_n:.1f} N of friction ({mass_kg:.3f} kg x "
+            f"{accel_m_s2:.2f} m/s^2 x safety factor {safety_factor:g}) and the pads give {available_n:.1f} N "
+            f"(2 x friction {friction:g} x {pad_force_n:.1f} N per pad)")

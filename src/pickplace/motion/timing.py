@@ -16,6 +16,7 @@ The output is evaluated exactly as TOPP-RA models it: constant path acceleration
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import logging
 import math
@@ -131,6 +132,17 @@ class Trajectory:
     _t: np.ndarray = field(repr=False)  # (n,) time at each gridpoint (s)
     _sd: np.ndarray = field(repr=False)  # (n,) path speed ds/dt at each gridpoint (rad/s)
     _u: np.ndarray = field(repr=False)  # (n-1,) constant path acceleration of each stage (rad/s^2)
+
+    def slowed(self, factor: float) -> Trajectory:
+        """The same path run ``factor`` (>= 1) times slower: velocities divided by the factor, accelerations by
+        its square (a uniform time scaling keeps every limit the original respected)."""
+        k = float(factor)
+        if not (math.isfinite(k) and k >= 1.0):
+            raise ValueError(f"factor must be a finite number >= 1, got {factor!r}")
+        return dataclasses.replace(self, duration_s=self.duration_s * k,
+                                   peak_velocity_ratio=self.peak_velocity_ratio / k,
+                                   peak_acceleration_ratio=self.peak_acceleration_ratio / k**2, _t=self._t * k,
+                                   _sd=self._sd / k, _u=self._u / k**2)
 
     def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Evaluate at one time ``t`` (s), clamped to [0, duration] and at rest outside.

@@ -6,6 +6,7 @@ How well it holds is measured by the hold test, :mod:`pickplace.grasping.hold`.
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -110,6 +111,22 @@ class GripperGeometry:
     def contact_travel_m(self, width_m: float) -> float:
         """Finger travel (m) at which the pads touch an object this wide across them (m)."""
         return self.open_inner_face_y_m - width_m / 2
+
+
+def squeeze_per_pad_n(robot: Robot, width_m: float) -> float:
+    """Normal force (N) each pad presses with on an object ``width_m`` wide, the gripper commanded closed.
+
+    The position actuator pulls the fingers towards the fully closed stroke with ``kp`` times the distance
+    still to go, up to its force limit, and the coupled fingers share that force between the two pads (half
+    each, by virtual work): 20 N per pad for anything wider than ~20 mm, less for thinner objects (the servo
+    reaches its target before the limit).
+    """
+    m, a = robot.mj, robot.handles.gripper_actuator
+    geom = GripperGeometry.measure(robot)
+    kp = float(m.actuator_gainprm[a, 0])
+    limit = float(m.actuator_forcerange[a, 1]) if m.actuator_forcelimited[a] else math.inf
+    short = geom.travel_m - geom.contact_travel_m(width_m)  # finger travel left when the pads touch (m)
+    return max(0.0, min(limit, kp * short)) / 2.0
 
 
 def command(robot: Robot, d: mujoco.MjData, closed: bool) -> None:

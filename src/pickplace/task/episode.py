@@ -169,6 +169,8 @@ class EpisodeResult:
         waypoints_raw: Waypoints of the tree path per segment.
         waypoints_shortcut: Waypoints after shortcutting per segment.
         trajectory_duration_s: Duration of the timed trajectory per segment.
+        slowdown_for_grip: How many times slower than time-optimal each segment ran so that the grip holds the
+            object (1: not slowed; see :mod:`pickplace.grasping.grip`).
         place_error_xy_m: Horizontal distance of the released object (at rest) from the goal.
         place_error_z_m: Height error of the released object (positive: above its resting height).
         place_error_yaw_rad: Yaw error of the released object, modulo its symmetry
@@ -214,6 +216,7 @@ class EpisodeResult:
     waypoints_raw: dict[str, int]
     waypoints_shortcut: dict[str, int]
     trajectory_duration_s: dict[str, float]
+    slowdown_for_grip: dict[str, float]
     place_error_xy_m: float
     place_error_z_m: float
     place_error_yaw_rad: float
@@ -314,6 +317,7 @@ def _result(out: MachineOutcome, config: EpisodeConfig, seed: int, wall: float, 
         waypoints_raw=_by_segment(out.segments, "waypoints_raw"),
         waypoints_shortcut=_by_segment(out.segments, "waypoints_shortcut"),
         trajectory_duration_s=_by_segment(out.segments, "duration_s"),
+        slowdown_for_grip=_by_segment(out.segments, "slowdown"),
         place_error_xy_m=out.place_error_xy_m,
         place_error_z_m=out.place_error_z_m,
         place_error_yaw_rad=out.place_error_yaw_rad,

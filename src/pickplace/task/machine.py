@@ -34,6 +34,7 @@ import pinocchio as pin
 from pickplace.errors import ConfigError, GraspFailed, PickPlaceError, UnreachableTarget
 from pickplace.grasping.closure import analyze_grasp
 from pickplace.grasping.configurations import GraspConfigurations, solve_grasp_configurations
+from pickplace.grasping.grip import GripCapacity, com_accelerations, grip_capacity, slowdown_for_grip
 from pickplace.grasping.targets import CLEARANCE_M, backed_off, object_yaw, place_targets, yaw_error
 from pickplace.motion import control
 from pickplace.motion.collision import CollisionChecker, CollisionPolicy
@@ -125,6 +126,9 @@ class MachineConfig:
         predict_period_s: While a trajectory runs, the rest of it is checked against the world as it is now
             this often (s); a predicted collision stops the arm and replans.
         object_settle_timeout_s: During a recovery, time allowed for the released object to come to rest (s).
+        grip_safety_factor: Margin of the grip: the friction the object needs (its weight, and its inertia in a
+            motion) times this must stay within what the pads give; an object whose weight alone needs more is
+            rejected before the arm moves, and motions that carry it are slowed down until it holds.
     """
 
     planning_margin_m: float = 0.01
@@ -145,6 +149,7 @@ class MachineConfig:
     max_retries: int = 3
     predict_period_s: float = 0.05
     object_settle_timeout_s: float = 2.0
+    grip_safety_factor: float = 1.25
 
     def __post_init__(self) -> None:
         limits = {
@@ -156,7 +161,7 @@ class MachineConfig:
             "place_tolerance_z_m": (1e-4, 0.1, "m"), "place_tolerance_yaw_rad": (1e-4, math.pi / 4, "rad"),
             "retract_height_m": (0.0, 0.5, "m"), "settle_s": (0.0, 5.0, "s"), "poll_s": (0.001, 0.1, "s"),
             "stable_after_release_s": (0.0, 10.0, "s"), "predict_period_s": (0.001, 1.0, "s"),
-            "object_settle_timeout_s": (0.01, 10.0, "s"),
+            "object_settle_timeout_s": (0.01, 10.0, "s"), "grip_safety_factor": (1.0, 10.0, ""),
         }
         for name, (lo, hi, unit) in limits.items():
             object.__setattr__(self, name, check_range(f"machine.{name}", getattr(self, name), lo, hi, unit=unit))
@@ -176,6 +181,7 @@ class SegmentPlan:
         cost_rad: Joint-space length after shortcutting (rad).
         duration_s: Duration of the timed trajectory (s).
         status: The planner's status (``direct``, ``solved``, ``refined``).
+        slowdown: How many times slower than time-optimal it was run so that the grip holds (1: not slowed).
     """
 
     name: str
@@ -186,6 +192,7 @@ class SegmentPlan:
     cost_rad: float
     duration_s: float
     status: str
+    slowdown: float = 1.0
 
 
 @dataclass
@@ -308,6 +315,7 @@ class PickPlaceMachine:
         self.configs: GraspConfigurations | None = None
         self._trajectory: Trajectory | None = None
         self._payload: Payload | None = None
+        self._capacity: GripCapacity | None = None
         self._T_tcp_object: pin.SE3 | None = None
         self._release_t = math.nan
         self._object_names = frozenset(object_geom_names(robot.scene.object))
@@ -383,12 +391,32 @@ class PickPlaceMachine:
         t1 = time.perf_counter()
         accept = checker_at(margin / 2)
         traj = retime(np.asarray(res.path), self.timing, accept.all_valid)
+        slowdown = 1.0
+        if self._capacity is not None and self._payload is not None:  # carrying: slow down to what the grip holds
+            assert self._T_tcp_object is not None
+            com = self._T_tcp_object.act(mass_properties(self.robot.scene.object).com_m)
+            accels = com_accelerations(self.robot, traj, com, gripper.finger_travel(self.robot, self.d))
+            slowdown = slowdown_for_grip(accels, self._capacity)
+            if slowdown > 1.0:
+                traj = traj.slowed(slowdown)
+                log.info("%s: slowed down %.2f times so that the grip holds (%.3f s)", name, slowdown,
+                         traj.duration_s)
         self._segment_checker = accept
         t2 = time.perf_counter()
         self.out.wall_plan_time_s += t2 - t0
         self.out.segments.append(SegmentPlan(name, t1 - t0, t2 - t1, len(res.path_raw), len(res.path), res.cost_rad,
-                                             traj.duration_s, res.status.value))
+                                             traj.duration_s, res.status.value, slowdown))
         self._trajectory = traj
+
+    def _motion_config(self) -> ControlConfig:
+        """The controller config of a straight move: with the object held, its peak acceleration limited to
+        what the grip holds (``GripCapacity.max_vertical_accel_m_s2``, at least 0.1 m/s^2)."""
+        if self._capacity is None or self._payload is None:
+            return self.ctrl
+        limit = max(0.1, self._capacity.max_vertical_accel_m_s2)
+        if limit >= self.ctrl.vertical_accel_m_s2:
+            return self.ctrl
+        return dataclasses.replace(self.ctrl, vertical_accel_m_s2=limit)
 
     def _predict(self, t_start: float) -> Callable[[mujoco.MjData, float], None]:
         """A check of the rest of the running trajectory against the world as it is now."""
@@ -439,7 +467,7 @@ class PickPlaceMachine:
 
     def _linear(self, phase: Phase, target: np.ndarray, hook: control.Hook | None = None) -> control.CartesianRecord:
         """Move the tcp along a straight line to ``target`` (3,) (m); ``hook`` replaces the monitor."""
-        rec = control.move_linear(self.robot, self.d, target, self.ctrl, payload=self._payload,
+        rec = control.move_linear(self.robot, self.d, target, self._motion_config(), payload=self._payload,
                                   hook=hook or self.monitor, noise=self.noise)
         self._count(rec)
         if not rec.reached:
@@ -455,10 +483,17 @@ class PickPlaceMachine:
         configs = solve_grasp_configurations(self.robot, self.ik, obj, self.d, self.cfg.planning_margin_m)
         self.robot.scene.check_goal_on_table()
         self.monitor.watch_object_at = obj.translation.copy()
-        self.configs = configs
+        self._adopt(configs)
         self._note_ik(*configs.results())
         self.out.wall_plan_time_s += time.perf_counter() - t0
         return Phase.PLAN_APPROACH
+
+    def _adopt(self, configs: GraspConfigurations) -> None:
+        """Take these targets, after checking that their grip can hold the object (:class:`CannotHold` if not)."""
+        targets, obj = configs.targets, self.robot.scene.object
+        capacity = grip_capacity(self.robot, obj, targets.T_tcp_object, targets.width_m, self.cfg.grip_safety_factor)
+        capacity.require_holdable(obj.name)
+        self.configs, self._capacity = configs, capacity
 
     def _plan_approach(self) -> Phase:
         assert self.configs is not None
@@ -545,7 +580,8 @@ class PickPlaceMachine:
             return float(np.sum(f_z) / np.sum(g_plus_a)) if f_z else math.nan
 
         try:
-            rec = control.move_vertical(self.robot, self.d, target_z, self.ctrl, payload=self._payload, hook=hook,
+            rec = control.move_vertical(self.robot, self.d, target_z, self._motion_config(), payload=self._payload,
+                                        hook=hook,
                                         noise=self.noise, raise_on_timeout=False)
         finally:  # a slip aborts the move: still report what the pads felt
             mass = measured_mass()
@@ -560,7 +596,9 @@ class PickPlaceMachine:
             self.out.recoveries.append(note)
             log.info("recovery: %s", note)
             self._payload = dataclasses.replace(self._payload, mass_kg=mass)
-            rec = control.move_vertical(self.robot, self.d, target_z, self.ctrl, payload=self._payload, hook=hook,
+            self._capacity = dataclasses.replace(self._capacity, mass_kg=mass) if self._capacity else None
+            rec = control.move_vertical(self.robot, self.d, target_z, self._motion_config(), payload=self._payload,
+                                        hook=hook,
                                         noise=self.noise, raise_on_timeout=False)
             self._count(rec)
             mass = measured_mass()
@@ -827,8 +865,7 @@ class PickPlaceMachine:
                                              f"{tilt:.2f} rad")
         t0 = time.perf_counter()
         try:
-            self.configs = solve_grasp_configurations(robot, self.ik, obj, d,
-                                                      cfg.planning_margin_m)
+            self._adopt(solve_grasp_configurations(robot, self.ik, obj, d, cfg.planning_margin_m))
         except UnreachableTarget as exc:
             where = f"({obj.translation[0]:.3f}, {obj.translation[1]:.3f}) m"
             raise PhaseFailed(Phase.RECOVER, f"the {name} now rests at {where}, out of reach: {exc}") from exc

@@ -1,0 +1,156 @@
+"""What a grip can carry, and motion slowed down to it (grasp-aware motion).
+
+The pads hold the object by friction: with both pads squeezing ``F`` (N) each and a friction coefficient
+``mu``, they can transmit at most ``2 mu F`` along their faces. The grip's closing axis is horizontal, so the
+whole force the object needs, ``m (a - g)`` (its weight and its inertia), lies along the faces and must stay
+below that, with a safety factor ``s``:
+
+    ``m |a - g| s <= 2 mu F``
+
+Everything here uses what the robot *believes*: the configured mass and friction, the commanded squeeze
+(:func:`~pickplace.robot.gripper.squeeze_per_pad_n`), the centre of mass from the geometry at uniform
+density. An object whose weight alone needs more (``m g s > 2 mu F``) cannot be held at any acceleration: the
+episode rejects it before the arm moves (:class:`~pickplace.errors.CannotHold`). Otherwise the lift and the
+set-down are limited to the vertical acceleration that holds, and a carrying trajectory is slowed down
+uniformly until the centre of mass's acceleration holds at every instant.
+
+Not modelled: the torque about the closing axis (the pads' torsional and patch friction against an off-centre
+object's weight and inertia) and dynamic effects of the squeeze itself.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from pickplace.errors import CannotHold
+from pickplace.motion.timing import Trajectory
+from pickplace.robot.gripper import squeeze_per_pad_n
+from pickplace.robot.model import Robot
+from pickplace.world.mass import mass_properties
+from pickplace.world.objects import ObjectConfig
+
+#: Standard gravity (m/s^2).
+G = 9.81
+#: The slowest a carrying trajectory is made (times its time-optimal duration); beyond it the motion is deemed
+#: impossible to hold rather than merely slow.
+MAX_SLOWDOWN = 20.0
+#: Spacing of the samples at which a trajectory's centre-of-mass acceleration is checked (s).
+SAMPLE_DT_S = 0.005
+
+
+@dataclass(frozen=True)
+class GripCapacity:
+    """What a grip can carry, and what the object needs.
+
+    Attributes:
+        mass_kg: The object's (believed) mass (kg).
+        friction: Its (believed) friction coefficient.
+        pad_force_n: Normal force of each pad (N).
+        safety_factor: Factor the needed force is multiplied by before it is compared (1 = no margin).
+        com_tcp_m: The object's centre of mass in the tcp frame (3,) (m).
+    """
+
+    mass_kg: float
+    friction: float
+    pad_force_n: float
+    safety_factor: float
+    com_tcp_m: tuple[float, float, float]
+
+    @property
+    def friction_force_n(self) -> float:
+        """The most the pads transmit along their faces, ``2 mu F`` (N)."""
+        return 2.0 * self.friction * self.pad_force_n
+
+    @property
+    def needed_at_rest_n(self) -> float:
+        """What holding the object still needs, ``m g s`` (N)."""
+        return self.mass_kg * G * self.safety_factor
+
+    @property
+    def acceleration_budget_m_s2(self) -> float:
+        """The largest ``|a - g|`` of the centre of mass that holds, ``2 mu F / (m s)`` (m/s^2)."""
+        return self.friction_force_n / (self.mass_kg * self.safety_factor)
+
+    @property
+    def max_vertical_accel_m_s2(self) -> float:
+        """The largest vertical acceleration (either way) that holds: the budget less gravity (m/s^2)."""
+        return self.acceleration_budget_m_s2 - G
+
+    def require_holdable(self, name: str) -> None:
+        """Raise :class:`CannotHold` if the object's weight alone needs more friction than the pads have."""
+        if self.needed_at_rest_n > self.friction_force_n:
+            raise CannotHold(name, self.needed_at_rest_n, self.friction_force_n, self.mass_kg, self.friction,
+                             self.pad_force_n, self.safety_factor)
+
+
+def grip_capacity(robot: Robot, obj: ObjectConfig, T_tcp_object: pin.SE3, width_m: float,
+                  safety_factor: float, mass_kg: float | None = None) -> GripCapacity:
+    """The capacity of a grip on ``obj`` held at ``T_tcp_object`` across ``width_m`` (m).
+
+    Args:
+        robot: The models (the gripper's actuator).
+        obj: The object as the robot believes it.
+        T_tcp_object: The object's pose in the tcp frame.
+        width_m: Its width between the pads (m).
+        safety_factor: Margin on the needed force (>= 1).
+        mass_kg: A mass to use instead of the configured one (e.g. after weighing it) (kg).
+    """
+    com = T_tcp_object.act(mass_properties(obj).com_m)
+    return GripCapacity(obj.mass_kg if mass_kg is None else mass_kg, obj.friction,
+                        squeeze_per_pad_n(robot, width_m), safety_factor,
+                        (float(com[0]), float(com[1]), float(com[2])))
+
+
+def com_accelerations(robot: Robot, traj: Trajectory, com_tcp_m: np.ndarray, finger_m: float,
+                      dt_s: float = SAMPLE_DT_S) -> np.ndarray:
+    """The held object's centre-of-mass acceleration (N, 3) in the world (m/s^2) along a trajectory, every
+    ``dt_s`` (rigid with the tcp: ``a_tcp + alpha x r + omega x (omega x r)``)."""
+    model, data, fid = robot.pin, robot.pin.createData(), robot.pin_tcp_frame
+    ts = np.arange(0.0, traj.duration_s + dt_s, dt_s)
+    qs, qds, qdds = traj.sample_many(ts)
+    out = np.empty((len(ts), 3))
+    v, a = np.zeros(model.nv), np.zeros(model.nv)
+    r_tcp = np.asarray(com_tcp_m, dtype=float)
+    for k in range(len(ts)):
+        v[:6], a[:6] = qds[k], qdds[k]
+        pin.forwardKinematics(model, data, robot.pin_q(qs[k], finger_m), v, a)
+        acc = pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
+        vel = pin.getFrameVelocity(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
+        R = pin.updateFramePlacement(model, data, fid).rotation
+        r = R @ r_tcp
+        w = vel.angular
+        out[k] = acc.linear + np.cross(acc.angular, r) + np.cross(w, np.cross(w, r))
+    return out
+
+
+def slowdown_for_grip(accels: np.ndarray, capacity: GripCapacity) -> float:
+    """The smallest factor (>= 1) by which a trajectory with these centre-of-mass accelerations (N, 3) (m/s^2)
+    must be slowed down for the grip to hold at every sample (accelerations scale with its inverse square).
+
+    Raises:
+        CannotHold: the object cannot be held even at rest, or only slower than ``MAX_SLOWDOWN`` times.
+    """
+    budget = capacity.acceleration_budget_m_s2
+    g = np.array([0.0, 0.0, -G])
+
+    def holds(k: float) -> bool:
+        return bool(np.all(np.linalg.norm(accels / k**2 - g, axis=1) <= budget))
+
+    if holds(1.0):
+        return 1.0
+    if not holds(MAX_SLOWDOWN):
+        worst = float(np.max(np.linalg.norm(accels / MAX_SLOWDOWN**2 - g, axis=1)))
+        raise CannotHold("object", capacity.mass_kg * worst * capacity.safety_factor, capacity.friction_force_n,
+                         capacity.mass_kg, capacity.friction, capacity.pad_force_n, capacity.safety_factor, worst)
+    lo, hi = 1.0, MAX_SLOWDOWN
+    for _ in range(40):  # bisection to ~1e-10 relative
+        mid = math.sqrt(lo * hi)
+        lo, hi = (lo, mid) if holds(mid) else (mid, hi)
+    return hi
+
+
+__all__ = ["MAX_SLOWDOWN", "G", "GripCapacity", "com_accelerations", "grip_capacity", "slowdown_for_grip"]
