@@ -790,6 +790,9 @@ class PickPlaceMachine:
             self._back_off()
         elif isinstance(exc, GraspFailed) and phase in _GRASP_PHASES:
             action, nxt = "stop, open, back off, re-observe the object and grasp again", Phase.RECOVER
+        elif isinstance(exc, UnexpectedContact) and phase in _GRASP_PHASES and self._touches_object(exc):
+            # the held object (slipping, knocked) hit the table or a wall: the robot itself touched nothing
+            action, nxt = "stop, open, back off, re-observe the object and grasp again", Phase.RECOVER
         elif isinstance(exc, ObjectMoved) and phase in (Phase.EXEC_APPROACH, Phase.DESCEND):
             action, nxt = "stop, wait for the object to rest, observe it again and approach again", Phase.RECOVER
         elif phase is Phase.DESCEND and (isinstance(exc, PhaseFailed) or
@@ -826,16 +829,8 @@ class PickPlaceMachine:
             self.monitor.tolerate_contacts = False
 
     def _recover(self) -> Phase:
-        """Let go, back off upwards, wait for the object to rest, and observe it again for a new approach."""
-        try:
-            return self._recover_steps()
-        except UnexpectedContact as exc:
-            if any("floor" in pair and any(n in self._object_names for n in pair) for pair in exc.pairs):
-                raise PhaseFailed(Phase.RECOVER, f"the {self.robot.scene.object.name} fell off the table ({exc})"
-                                  ) from exc
-            raise
-
-    def _recover_steps(self) -> Phase:
+        """Stop, let go, back off upwards, wait for the object to rest wherever it fell, and observe it again for
+        a new approach (with whatever grasp now works)."""
         robot, d, cfg = self.robot, self.d, self.cfg
         scene = robot.scene
         self.monitor.holding = False
@@ -857,17 +852,19 @@ class PickPlaceMachine:
                                              f"{cfg.object_settle_timeout_s:.1f} s")
         self.monitor.allow_hand_object = False
         obj = self._object_pose()
-        resting_z = scene.rest_z_m
-        tilt = float(np.arccos(np.clip(np.max(np.abs(obj.rotation[2])), -1.0, 1.0)))  # an axis up: 0
-        if abs(obj.translation[2] - resting_z) > 0.005 or tilt > 0.1:
-            raise PhaseFailed(Phase.RECOVER, f"the {name} is not resting on the table: origin at z = "
-                                             f"{obj.translation[2]:.3f} m (expected {resting_z:.3f} m), tilted "
-                                             f"{tilt:.2f} rad")
+        lowest = float(np.min(scene.object.geometry().vertices @ obj.rotation[2]) + obj.translation[2])
+        where = f"({obj.translation[0]:.3f}, {obj.translation[1]:.3f}) m"
+        if lowest < scene.table_height_m - 0.01:
+            raise PhaseFailed(Phase.RECOVER, f"the {name} fell off the table: it rests at {where}, "
+                                             f"{scene.table_height_m - lowest:.3f} m below the table top")
+        if lowest > scene.table_height_m + 0.005:
+            raise PhaseFailed(Phase.RECOVER, f"the {name} is not resting on the table: its lowest point is "
+                                             f"{(lowest - scene.table_height_m) * 1e3:.0f} mm above it at {where} "
+                                             "(it is stuck on something)")
         t0 = time.perf_counter()
         try:
             self._adopt(solve_grasp_configurations(robot, self.ik, obj, d, cfg.planning_margin_m))
         except UnreachableTarget as exc:
-            where = f"({obj.translation[0]:.3f}, {obj.translation[1]:.3f}) m"
             raise PhaseFailed(Phase.RECOVER, f"the {name} now rests at {where}, out of reach: {exc}") from exc
         finally:
             self.out.wall_plan_time_s += time.perf_counter() - t0

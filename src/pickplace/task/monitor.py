@@ -96,12 +96,19 @@ class StepMonitor:
         return R.T @ (d.xpos[h.object_body] - d.site_xpos[h.tcp_site])
 
     def allowed(self, a: int, b: int) -> bool:
-        """Whether a contact between geom classes a and b is allowed now."""
+        """Whether a contact between geom classes a and b is allowed now.
+
+        The robot touching anything but the object (when allowed) is a fault. The object touching the table,
+        a wall or the floor is a fault only while the robot holds it (it carried the object into them); an
+        object that is not held (resting, or dropped) may touch whatever it falls on.
+        """
         lo, hi = min(a, b), max(a, b)
         if hi == _OBJECT and lo in (_GRIPPER, _PAD):
             return self.allow_hand_object
         if (lo, hi) == (_OBJECT, _TABLE):
-            return self.allow_object_table
+            return self.allow_object_table or not self.holding
+        if (lo, hi) == (_OBJECT, _ENV):
+            return not self.holding
         return False
 
     def __call__(self, d: mujoco.MjData) -> None:
