@@ -13,6 +13,7 @@ with each other on the same machine, never with numbers recorded elsewhere.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -509,3 +510,41 @@ def test_fault_ranges_are_sampled_into_the_trial_faults_without_moving_the_other
     assert np.linalg.norm(config.faults.transport_push_n) == pytest.approx(b["transport_push_n"])
     with pytest.raises(ConfigError, match=r"randomization\.pad_friction_scale"):
         RandomizationSpec(pad_friction_scale=(-1.0, 1.0))
+
+
+def test_objects_are_drawn_from_the_library_without_changing_the_other_draws() -> None:
+    from pickplace.eval.campaign import RandomizationSpec
+    from pickplace.world.objects import LIBRARY
+
+    plain = RandomizationSpec()
+    mixed = RandomizationSpec(objects=("cube", "soda_can", "tennis_ball"))
+    seen = set()
+    for i in range(30):
+        a = plain.sample(np.random.default_rng(i))
+        b = mixed.sample(np.random.default_rng(i))
+        assert {k: v for k, v in b.items() if k != "object"} == a
+        seen.add(b["object"])
+    assert seen == {"cube", "soda_can", "tennis_ball"}
+    assert RandomizationSpec.from_dict({"objects": ["mug", "cube"]}).objects == ("mug", "cube")
+    assert RandomizationSpec.from_dict(mixed.to_dict()) == mixed
+    assert "objects" not in plain.to_dict()  # the identity of earlier campaigns is unchanged
+    with pytest.raises(ConfigError, match=r"randomization\.objects.*teapot.*must be one of"):
+        RandomizationSpec(objects=("cube", "teapot"))
+    assert set(LIBRARY) >= set(mixed.objects)
+
+
+def test_a_start_drawn_inside_the_wall_is_drawn_again() -> None:
+    from pickplace.eval.campaign import CampaignConfig, RandomizationSpec, make_trial
+
+    base = EpisodeConfig().with_scene(obstacle=True, obstacle_xy_m=(0.40, 0.10), start_xy_m=(0.40, 0.20))
+    spec = RandomizationSpec.off()
+    spec = dataclasses.replace(spec, start_dy_m=(-0.15, 0.05), objects=("cube", "sugar_box"))
+    campaign = CampaignConfig(base=base, randomization=spec, trials=40, seed=3)
+    redrawn = 0
+    for i in range(40):
+        trial = make_trial(campaign, i)
+        trial.config.scene.check_start_clear_of_obstacle()  # never inside the wall
+        rng = np.random.default_rng(np.random.SeedSequence(3, spawn_key=(i, 1)))
+        redrawn += spec.sample(rng) != trial.params
+        assert make_trial(campaign, i) == trial  # the redraws come from the trial's own stream
+    assert redrawn > 0

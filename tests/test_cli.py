@@ -104,3 +104,45 @@ def test_run_viewer_without_a_display_says_so() -> None:
     assert proc.stdout == "" and "Traceback" not in proc.stderr
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and "--viewer needs a display" in lines[0] and "--video" in lines[0]
+
+
+def test_objects_json_lists_each_object_with_its_feasible_grasps(capsys) -> None:
+    assert main(["objects", "--json", "cube", "soda_can_lying"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert [d["name"] for d in data] == ["cube", "soda_can_lying"]
+    for d in data:
+        assert 0 < d["feasible"] <= d["grasps_at_default_pose"] <= d["grasps"]
+        assert sum(d["feasible_by_approach"].values()) == d["feasible"]
+        assert d["mass_kg"] > 0 and d["source"]
+    assert data[0]["extent_m"] == pytest.approx([0.04, 0.04, 0.04], abs=1e-12)
+    assert main(["objects", "teapot"]) == 1
+    assert "objects = 'teapot' is invalid" in capsys.readouterr().err
+
+
+def _mesh_error(capsys, path: str) -> str:
+    assert main(["run", "--object-mesh", path, "--object-mass", "0.2"]) == 1
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1, lines  # one clear line
+    return lines[0]
+
+
+def test_user_mesh_errors_are_one_line_each(tmp_path, capsys) -> None:
+    import trimesh
+
+    assert "no such file" in _mesh_error(capsys, str(tmp_path / "missing.stl"))
+    trimesh.creation.box((0.2, 0.2, 0.2)).export(tmp_path / "big.stl")
+    assert "too large for the gripper" in _mesh_error(capsys, str(tmp_path / "big.stl"))
+    open_box = trimesh.creation.box((0.04, 0.04, 0.04))
+    open_box.faces = open_box.faces[:-2]
+    open_box.export(tmp_path / "open.stl")
+    assert "not watertight" in _mesh_error(capsys, str(tmp_path / "open.stl"))
+
+
+def test_user_mesh_runs_end_to_end(tmp_path, capsys) -> None:
+    import trimesh
+
+    trimesh.creation.cylinder(radius=0.025, height=0.08, sections=48).export(tmp_path / "can.stl")
+    assert main(["run", "--object-mesh", str(tmp_path / "can.stl"), "--object-mass", "0.2", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["success"] and result["config"]["object"]["kind"] == "mesh"
+    assert result["place_error_xy_m"] < 0.001

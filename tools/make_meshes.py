@@ -34,18 +34,26 @@ from pickplace.world import meshes  # noqa: E402
 
 @dataclass(frozen=True)
 class MugDesign:
-    """A ceramic mug, the common 11 oz size, in its resting frame: z up, standing on its bottom, the origin on
-    the body's axis at mid-height, the handle towards +x. Lengths in m.
+    """A small ceramic coffee mug (~7 oz, in the 6-8 oz class of espresso-lungo / cappuccino mugs),
+    straight-sided, in its resting frame: z up, standing on its bottom, the origin on the body's axis at
+    mid-height, the handle towards +x. Lengths in m.
+
+    Its size is set by the gripper (84 mm open; ``MAX_GRIP_WIDTH_M`` = 74 mm): the body, 69 mm across, is
+    squeezed across with 5 mm to spare below 74 mm; and the cavity, 60 mm across, still takes the open
+    inner finger of a top-down pinch of the wall at the rim. That finger's far face is 56 mm from the pad's
+    centre on the wall and 24 mm wide, plus the synthesis' 2 mm sweep clearance all round; its corners stay
+    inside the cavity only if the body is at least ~68.3 mm across with a 4.5 mm wall (~69.0 mm with 5 mm):
+    69 mm leaves them 0.7 mm.
 
     Attributes:
-        outer_radius_m: Body's outer radius: 81 mm across (3.2 in, the usual listing of the 11 oz mug).
-        height_m: Body's height: 95 mm (3.75 in, the same listing).
-        wall_m: Side wall's thickness (assumed, typical of a glazed stoneware mug).
+        outer_radius_m: Body's outer radius: 69 mm across (assumed: the smallest with the rim pinch above).
+        height_m: Body's height: 80 mm (assumed; with the wall and bottom below it holds 208 ml to the brim).
+        wall_m: Side wall's thickness (assumed, typical of a glazed stoneware / porcelain mug).
         bottom_m: Bottom's thickness (assumed).
-        handle_radius_m: Radius of the handle's centre line (a half circle in the xz plane).
+        handle_radius_m: Radius of the handle's centre line (a half circle in the xz plane; assumed).
         handle_thickness_m: Handle's section in the loop's plane (assumed).
         handle_width_m: Handle's section along y (assumed).
-        handle_root_x_m: x of the handle's two flat ends: inside the wall (35.5 to 40.5 mm), mid-wall.
+        handle_root_x_m: x of the handle's two flat ends: inside the wall (30 to 34.5 mm), mid-wall.
         handle_centre_z_m: Height of the handle's centre (slightly above the body's middle).
         body_segments: Facets around the body.
         handle_segments: Facets along the handle's half circle.
@@ -53,15 +61,15 @@ class MugDesign:
         density_kg_m3: Fired stoneware / porcelain (~2.3-2.4 g/cm^3; the lower end).
     """
 
-    outer_radius_m: float = 0.0405
-    height_m: float = 0.095
-    wall_m: float = 0.005
-    bottom_m: float = 0.007
-    handle_radius_m: float = 0.028
+    outer_radius_m: float = 0.0345
+    height_m: float = 0.080
+    wall_m: float = 0.0045
+    bottom_m: float = 0.0065
+    handle_radius_m: float = 0.026
     handle_thickness_m: float = 0.010
     handle_width_m: float = 0.014
-    handle_root_x_m: float = 0.038
-    handle_centre_z_m: float = 0.005
+    handle_root_x_m: float = 0.03225
+    handle_centre_z_m: float = 0.004
     body_segments: int = 96
     handle_segments: int = 64
     section_segments: int = 32
@@ -131,11 +139,11 @@ def check_parts(parts: list[np.ndarray], design: MugDesign = MUG) -> dict[str, f
     """How well the convex parts fit the mug: wall coverage, and how far into the cavity they reach.
 
     Returns:
-        ``wall_covered``: fraction of points in the middle of the wall (every 5 deg, 1 to 94 mm up) inside
-        some part; ``bottom_covered``: same for the middle of the bottom; ``cavity_intrusion_m``: the
-        smallest inset from the inner wall at which points around the cavity (every 2 deg, from 1 mm above
-        its floor to 0.5 mm below the rim) are inside no part (m); ``centre_free``: 1 if the cavity's
-        centre is inside no part.
+        ``wall_covered``: fraction of points in the middle of the wall (every 5 deg, from 1 mm up to 1 mm
+        below the rim) inside some part; ``bottom_covered``: same for the middle of the bottom;
+        ``cavity_intrusion_m``: the smallest inset from the inner wall at which points around the cavity
+        (every 2 deg, from 1 mm above its floor to 0.5 mm below the rim) are inside no part (m);
+        ``centre_free``: 1 if the cavity's centre is inside no part.
     """
     from scipy.spatial import ConvexHull
 

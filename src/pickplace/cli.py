@@ -463,6 +463,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print summary.json instead of the tables")
     p.set_defaults(func=_cmd_eval)
 
+    p = sub.add_parser("objects", help="the object library: sizes, masses, friction and how many grasps each offers")
+    p.add_argument("names", nargs="*", metavar="NAME", help="only these library objects (default: all)")
+    p.add_argument("--json", action="store_true", help="print a JSON list of objects (each with its name)")
+    p.set_defaults(func=_cmd_objects)
+
     p = sub.add_parser("report", help="plots and report.md of a campaign's output directory")
     p.add_argument("out", metavar="OUT", help="the campaign's output directory (pickplace eval --out)")
     p.set_defaults(func=_cmd_report)
@@ -583,6 +588,41 @@ def _cmd_eval(args: argparse.Namespace, console: Console) -> int:
         print(json.dumps(run.summary.to_dict(), indent=2))
     else:
         print_campaign(run, console)
+    return 0
+
+
+def _cmd_objects(args: argparse.Namespace, console: Console) -> int:
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+
+    from pickplace.grasping.library import summarize_object
+    from pickplace.world.objects import LIBRARY
+
+    names = args.names or list(LIBRARY)
+    for name in names:
+        if name not in LIBRARY:
+            raise ConfigError("objects", name, f"must be one of {', '.join(LIBRARY)}")
+    rows = []
+    with Progress(TextColumn("[bold]grasps"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.description}"),
+                  console=Console(stderr=True), transient=True, disable=args.json) as progress:
+        task = progress.add_task("", total=len(names))
+        for name in names:
+            progress.update(task, description=name)
+            rows.append(summarize_object(LIBRARY[name]))
+            progress.advance(task)
+    if args.json:
+        print(json.dumps([r.to_dict() for r in rows], indent=2))
+        return 0
+    t = Table(title="Object library (grasps: synthesized / clear of the table / reachable at the default pose)")
+    for col in ("object", "kind", "size x × y × z (mm)", "mass (kg)", "μ", "grasps", "feasible: top / tilted / side"):
+        t.add_column(col, justify="left" if col in ("object", "kind") else "right")
+    for r in rows:
+        by = r.feasible_by_approach
+        t.add_row(r.name, r.kind, " × ".join(f"{v * 1e3:.0f}" for v in r.extent_m), f"{r.mass_kg:.3f}",
+                  f"{r.friction:g}", f"{r.grasps} / {r.grasps_at_default_pose} / {r.feasible}",
+                  f"{by.get('top', 0)} / {by.get('tilted', 0)} / {by.get('side', 0)}")
+    console.print(t)
+    console.print("Sources of the numbers: pickplace objects --json (field source). Default pose: the default "
+                  "scene's start; feasible = pregrasp and grasp reachable collision free.")
     return 0
 
 

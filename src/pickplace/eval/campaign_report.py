@@ -78,10 +78,11 @@ def _display(name: str) -> tuple[str, float]:
 
 
 def varied_params(records: Sequence[TrialRecord]) -> list[str]:
-    """Names of the parameters that took more than one value, in the order they were recorded."""
+    """Names of the numeric parameters that took more than one value, in the order they were recorded (the
+    object drawn per trial is summarized by object instead)."""
     names: dict[str, None] = {}
     for r in records:
-        names.update(dict.fromkeys(r.params))
+        names.update(dict.fromkeys(k for k, v in r.params.items() if isinstance(v, (int, float))))
     out = []
     for name in names:
         values = np.array([r.params[name] for r in records if name in r.params], dtype=float)
@@ -207,7 +208,22 @@ def summary_rows(summary: CampaignSummary) -> list[tuple[str, str]]:
          _count_share(summary.failed_after_motion, summary.failed_after_motion_rate)),
         ("worker failures (crash, timeout, exception)",
          _count_share(summary.worker_failures, summary.worker_failure_rate)),
-    ]
+        ("success rate of the trials not rejected in IDLE (95% Wilson)",
+         _rate_ci(summary.successes, summary.trials - summary.failed_before_motion,
+                  summary.success_rate_attempted_ci95)),
+    ] + ([(f"{o.name}: ok / not rejected / trials (95% Wilson), place RMS, grasps",
+           f"{o.successes}/{o.trials - o.rejected}/{o.trials} "
+           f"{_rate_ci(o.successes, o.trials - o.rejected, o.success_rate_attempted_ci95)}, "
+           f"{_fmt(o.place_error_xy_rms_m, 1e3)} mm, "
+           + " ".join(f"{k} {v}" for k, v in o.grasps.items())) for o in summary.by_object]
+         if len(summary.by_object) > 1 else [])
+
+
+def _rate_ci(k: int, n: int, ci: tuple[float, float]) -> str:
+    """``rate (lo – hi)`` of k successes in n, or a dash."""
+    if n <= 0:
+        return "—"
+    return f"{_pct(k / n)} ({_pct(ci[0])} – {_pct(ci[1])})"
 
 
 def _count_share(count: int, rate: float) -> str:

@@ -5,12 +5,14 @@ pointing into the object; tcp y: the closing axis). With the object observed at 
 
 * ``grasp = T_world_object * T_object_tcp``; ``pregrasp`` is backed off from it along the approach by
   ``CLEARANCE_M`` (straight up for a top-down grasp, sideways for a side grasp);
-* ``lift``: the grasp raised straight up by ``CLEARANCE_M`` (the object leaves the table vertically);
+* ``lift``: the grasp raised straight up by ``CLEARANCE_M`` (the object leaves the table vertically), or
+  higher where the carried object would still be within the planner's margin of something (beside a wall:
+  :func:`~pickplace.grasping.configurations.solve_grasp_configurations` raises it in ``LIFT_STEP_M`` steps);
 * the place sets the object down at the goal **on the face it rested on**, turned to the goal's yaw: its
   orientation there is ``Rz(d) R_world_object`` with ``d`` the goal yaw minus the object's yaw (modulo the
   object's symmetry, :attr:`~pickplace.world.objects.ObjectConfig.yaw_period_rad`), so a standing can stays
   standing and a lying one lying; ``place`` is the tcp holding it there, ``PLACE_DROP_M`` above resting;
-  ``preplace`` is ``CLEARANCE_M`` straight above.
+  ``preplace`` is ``CLEARANCE_M`` straight above (or higher, as the lift).
 
 Where the object's symmetry leaves a choice (a cube looks the same turned by 90 degrees, a standing can by
 any angle), the tcp orientation closest to the wrist's ``home`` orientation turned to face the object (or
@@ -19,6 +21,7 @@ the goal) is taken, so the wrist turns as little as it can.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -31,6 +34,11 @@ from pickplace.world.config import SceneConfig
 #: Distance of the pregrasp from the grasp along the approach, of the lift above the grasp and of the preplace
 #: above the place (m) (reference design).
 CLEARANCE_M = 0.150
+#: Step (m) by which the lift and the preplace are raised above ``CLEARANCE_M`` until the carried object
+#: clears everything by the planner's margin, up to ``MAX_RAISE_M``.
+LIFT_STEP_M = 0.05
+#: Highest lift and preplace above the grasp and the place (m).
+MAX_RAISE_M = 0.40
 #: Gap kept between the finger tips and the table at the grasp (m).
 TABLE_GAP_M = 0.005
 #: Height above its resting height at which the object is let go at the goal (m).
@@ -135,6 +143,20 @@ class GraspTargets:
                 ("preplace", self.preplace), ("place", self.place)]
 
     @property
+    def lift_height_m(self) -> float:
+        """Height of the lift above the grasp (m)."""
+        return float(self.lift.translation[2] - self.grasp.translation[2])
+
+    @property
+    def preplace_height_m(self) -> float:
+        """Height of the preplace above the place (m)."""
+        return float(self.preplace.translation[2] - self.place.translation[2])
+
+    def raised_by(self, lift_m: float, preplace_m: float) -> GraspTargets:
+        """A copy whose lift and preplace are ``lift_m`` above the grasp and ``preplace_m`` above the place (m)."""
+        return dataclasses.replace(self, lift=raised(self.grasp, lift_m), preplace=raised(self.place, preplace_m))
+
+    @property
     def T_tcp_object(self) -> pin.SE3:
         """The object's pose in the tcp frame once it is grasped as planned."""
         return self.T_object_tcp.inverse()
@@ -167,10 +189,9 @@ def grasp_targets(
         T_world_tcp_home: Tcp pose at ``home``: among equivalent places, the wrist stays closest to it.
     """
     grasp = T_world_object * T_object_tcp
-    goal = scene.goal_pos_m
     R_goal = place_orientation(T_world_object.rotation, scene.goal_yaw_rad, scene.object.yaw_period_rad,
-                               T_object_tcp, wrist_reference(T_world_tcp_home, goal[:2]))
-    place = pin.SE3(R_goal, goal + np.array([0.0, 0.0, PLACE_DROP_M])) * T_object_tcp
+                               T_object_tcp, wrist_reference(T_world_tcp_home, np.asarray(scene.goal_xy_m)))
+    place = pin.SE3(R_goal, scene.goal_resting_m(R_goal) + np.array([0.0, 0.0, PLACE_DROP_M])) * T_object_tcp
     return GraspTargets(
         pregrasp=backed_off(grasp, CLEARANCE_M), grasp=grasp, lift=raised(grasp, CLEARANCE_M),
         preplace=raised(place, CLEARANCE_M), place=place, T_object_tcp=T_object_tcp, width_m=width_m,
@@ -178,7 +199,7 @@ def grasp_targets(
 
 
 def place_targets(scene: SceneConfig, T_world_tcp: pin.SE3, T_world_object: pin.SE3,
-                  R_world_object_goal: np.ndarray) -> tuple[pin.SE3, pin.SE3]:
+                  R_world_object_goal: np.ndarray, height_m: float = CLEARANCE_M) -> tuple[pin.SE3, pin.SE3]:
     """Preplace and place tcp poses that set the object down at the goal *as it sits in the hand now*.
 
     The grasp never holds the object exactly as planned (the pads push it while they close, it settles in
@@ -191,6 +212,7 @@ def place_targets(scene: SceneConfig, T_world_tcp: pin.SE3, T_world_object: pin.
         T_world_tcp: Tcp pose now (while holding the object).
         T_world_object: Object pose now.
         R_world_object_goal: The object's planned orientation at the goal (from :func:`grasp_targets`).
+        height_m: Height of the preplace above the place (m) (:attr:`GraspTargets.preplace_height_m`).
 
     Returns:
         ``(preplace, place)``.
@@ -198,8 +220,8 @@ def place_targets(scene: SceneConfig, T_world_tcp: pin.SE3, T_world_object: pin.
     T_object_tcp = T_world_object.actInv(T_world_tcp)
     R = rot_z(float(wrap_to_pi(object_yaw(R_world_object_goal) - object_yaw(T_world_object.rotation)))) @ \
         T_world_object.rotation
-    place = pin.SE3(R, scene.goal_pos_m + np.array([0.0, 0.0, PLACE_DROP_M])) * T_object_tcp
-    return raised(place, CLEARANCE_M), place
+    place = pin.SE3(R, scene.goal_resting_m(R) + np.array([0.0, 0.0, PLACE_DROP_M])) * T_object_tcp
+    return raised(place, height_m), place
 
 
 def yaw_error(R_world_object: np.ndarray, R_world_object_goal: np.ndarray, period_rad: float) -> float:
@@ -212,32 +234,10 @@ def yaw_error(R_world_object: np.ndarray, R_world_object_goal: np.ndarray, perio
     return float(wrap_to_pi(k * d) / k)
 
 
-def top_down_face_grasps(scene: SceneConfig, T_world_object: pin.SE3, pad_half_height_m: float
-                         ) -> list[tuple[pin.SE3, float]]:
-    """Top-down grasps across the faces of a box resting on a face: ``[(T_object_tcp, width_m)]``.
-
-    The tcp points straight down at the object's centre, its pads across a pair of vertical faces (four
-    turns), raised if needed so that the finger tips stay ``TABLE_GAP_M`` above the table.
-    """
-    obj = scene.object
-    size = np.array(obj.size_m)
-    R = T_world_object.rotation
-    up = int(np.argmax(np.abs(R[2])))  # the object's axis that points up (it may rest on any face)
-    centre_z = float(T_world_object.translation[2])
-    above = max(0.0, scene.table_height_m + pad_half_height_m + TABLE_GAP_M - centre_z)
-    side = (up + 1) % 3
-    psi = object_yaw(R)
-    out = []
-    for k in range(4):
-        across = side if k % 2 == 0 else 3 - up - side  # the horizontal axis the pads close along
-        R_world_tcp = top_down(psi + k * math.pi / 2 - math.pi / 2)  # tcp y along that axis
-        T_world_tcp = pin.SE3(R_world_tcp, T_world_object.translation + np.array([0.0, 0.0, above]))
-        out.append((T_world_object.actInv(T_world_tcp), float(size[across])))
-    return out
-
-
 __all__ = [
     "CLEARANCE_M",
+    "LIFT_STEP_M",
+    "MAX_RAISE_M",
     "PLACE_DROP_M",
     "TABLE_GAP_M",
     "GraspTargets",
@@ -249,7 +249,6 @@ __all__ = [
     "raised",
     "symmetric_turns",
     "top_down",
-    "top_down_face_grasps",
     "wrist_reference",
     "yaw_error",
 ]

@@ -184,8 +184,12 @@ def add_object_geoms(spec: mujoco.MjSpec, body: mujoco.MjsBody, obj: ObjectConfi
                  "sphere": mujoco.mjtGeom.mjGEOM_SPHERE}
         for name, part, vol in zip(names, geo.primitives, volumes, strict=True):
             s = part.size_m
-            size = {"box": [s[0] / 2, s[1] / 2, s[2] / 2], "cylinder": [s[0], s[1] / 2, 0.0],
-                    "sphere": [s[0], 0.0, 0.0]}[part.kind]
+            if part.kind == "box":
+                size = [s[0] / 2, s[1] / 2, s[2] / 2]
+            elif part.kind == "cylinder":
+                size = [s[0], s[1] / 2, 0.0]
+            else:
+                size = [s[0], 0.0, 0.0]
             body.add_geom(name=name, type=kinds[part.kind], size=size, pos=list(part.pos_m),
                           quat=list(part.quat_wxyz), mass=obj.mass_kg * vol / sum(volumes), **extra)
     else:
@@ -216,10 +220,8 @@ def scene_xml(scene: SceneConfig) -> str:
 
 
 def obstacle_xy(scene: SceneConfig) -> tuple[float, float]:
-    """Centre (x, y) of the obstacle wall: midway between the object's start and the goal, plus the offset (m)."""
-    a, b = np.asarray(scene.start_xy_m), np.asarray(scene.goal_xy_m)
-    mid = (a + b) / 2 + np.asarray(scene.obstacle_offset_xy_m)
-    return float(mid[0]), float(mid[1])
+    """Centre (x, y) of the obstacle wall (m) (:attr:`SceneConfig.obstacle_centre_xy_m`)."""
+    return scene.obstacle_centre_xy_m
 
 
 @dataclass(frozen=True)

@@ -191,6 +191,11 @@ class EpisodeResult:
             vertical acceleration, averaged); m g when the pads alone hold the object.
         force_closure: The settled grip passed the 6D force-closure test on the simulated contacts.
         grasp_margin: Ferrari–Canny margin of that grip.
+        grasp_approach: The executed grasp's approach in the object's resting frame: ``top``, ``tilted`` or
+            ``side`` (the last one chosen, after a regrasp).
+        grasp_tilt_rad: Its approach's angle from straight down (rad).
+        grasp_width_m: The object's width between the pads at that grasp (m).
+        grasps_tried: Grasp candidates tried (IK, collisions) until that one worked (1: the best ranked).
         slip_max_m: Largest motion of the object in the tcp frame while held.
         torque_saturation_events: Control steps with a clipped torque.
         unexpected_contacts: Geom pairs of every unexpected contact met (recovered from or not).
@@ -233,6 +238,10 @@ class EpisodeResult:
     lift_load_n: float
     force_closure: bool
     grasp_margin: float
+    grasp_approach: str
+    grasp_tilt_rad: float
+    grasp_width_m: float
+    grasps_tried: int
     slip_max_m: float
     torque_saturation_events: int
     unexpected_contacts: tuple[tuple[str, str], ...]
@@ -334,6 +343,10 @@ def _result(out: MachineOutcome, config: EpisodeConfig, seed: int, wall: float, 
         lift_load_n=out.lift_load_n,
         force_closure=out.force_closure,
         grasp_margin=out.grasp_margin,
+        grasp_approach=out.grasp_approach,
+        grasp_tilt_rad=out.grasp_tilt_rad,
+        grasp_width_m=out.grasp_width_m,
+        grasps_tried=out.grasps_tried,
         slip_max_m=out.slip_max_m,
         torque_saturation_events=out.torque_saturation_events,
         unexpected_contacts=tuple(out.unexpected_contacts),

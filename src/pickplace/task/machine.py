@@ -220,6 +220,11 @@ class MachineOutcome:
             acceleration. It equals m g when the pads alone hold the object.
         force_closure: Whether the settled grip was force closure (6D wrench test on the actual contacts).
         grasp_margin: Ferrari–Canny margin of that grip (normalized wrench units).
+        grasp_approach: How the grasp that was executed last approaches the object (``top``, ``tilted``,
+            ``side``; in the object's resting frame), or "" before one is chosen.
+        grasp_tilt_rad: Its approach's angle from straight down (rad).
+        grasp_width_m: The object's width between its pads (m).
+        grasps_tried: Candidates tried (IK and collisions) before it was found, last time a grasp was chosen.
         slip_max_m: Largest motion of the object in the tcp frame while it was held (m).
         place_error_xy_m, place_error_z_m, place_error_yaw_rad: The object at rest after the release,
             relative to the goal (m, m, rad modulo 90 degrees).
@@ -248,6 +253,10 @@ class MachineOutcome:
     lift_load_n: float = 0.0
     force_closure: bool = False
     grasp_margin: float = 0.0
+    grasp_approach: str = ""
+    grasp_tilt_rad: float = math.nan
+    grasp_width_m: float = math.nan
+    grasps_tried: int = 0
     slip_max_m: float = 0.0
     place_error_xy_m: float = math.nan
     place_error_z_m: float = math.nan
@@ -494,6 +503,11 @@ class PickPlaceMachine:
         capacity = grip_capacity(self.robot, obj, targets.T_tcp_object, targets.width_m, self.cfg.grip_safety_factor)
         capacity.require_holdable(obj.name)
         self.configs, self._capacity = configs, capacity
+        grasp = configs.chosen
+        self.out.grasp_approach, self.out.grasp_tilt_rad = grasp.approach.value, grasp.tilt_rad
+        self.out.grasp_width_m, self.out.grasps_tried = grasp.width_m, configs.grasps_tried
+        log.info("grasp: %s (tilted %.0f deg), %.1f mm wide, margin %.3f; %d tried", grasp.approach.value,
+                 math.degrees(grasp.tilt_rad), grasp.width_m * 1e3, grasp.margin, configs.grasps_tried)
 
     def _plan_approach(self) -> Phase:
         assert self.configs is not None
@@ -627,7 +641,8 @@ class PickPlaceMachine:
         t0 = time.perf_counter()
         tcp, obj = self._tcp_pose(), self._object_pose()
         self._T_tcp_object = tcp.actInv(obj)
-        preplace, place = place_targets(self.robot.scene, tcp, obj, self.configs.targets.R_world_object_goal)
+        preplace, place = place_targets(self.robot.scene, tcp, obj, self.configs.targets.R_world_object_goal,
+                                        self.configs.targets.preplace_height_m)
         finger = gripper.finger_travel(self.robot, self.d)
         carry_ik = self._carrying(self.cfg.planning_margin_m, False)  # the planner accepts it as a goal
         place_ik = self._carrying(0.0, True)
@@ -652,7 +667,8 @@ class PickPlaceMachine:
         assert self.configs is not None
         t0 = time.perf_counter()
         tcp, obj = self._tcp_pose(), self._object_pose()
-        preplace, place = place_targets(self.robot.scene, tcp, obj, self.configs.targets.R_world_object_goal)
+        preplace, place = place_targets(self.robot.scene, tcp, obj, self.configs.targets.R_world_object_goal,
+                                        self.configs.targets.preplace_height_m)
         finger = gripper.finger_travel(self.robot, self.d)
         aim = solve_ik(self.robot, preplace, self.q, "preplace", self.ik, finger_m=finger)
         self._note_ik(aim)
@@ -662,7 +678,7 @@ class PickPlaceMachine:
             self._segment_checker = None  # a sub-millimetre correction: nothing to predict
             self._execute(Phase.DESCEND_PLACE)
         monitor = self.monitor
-        z_table_touch = self.robot.scene.goal_pos_m[2] + 0.003
+        z_table_touch = self.robot.scene.resting_z_m(self.configs.targets.R_world_object_goal) + 0.003
 
         def hook(d: mujoco.MjData) -> None:
             if d.xpos[self.robot.handles.object_body][2] < z_table_touch:
@@ -715,7 +731,7 @@ class PickPlaceMachine:
         scene = self.robot.scene
         assert self.configs is not None
         obj = self._object_pose()
-        err = obj.translation - scene.goal_pos_m
+        err = obj.translation - scene.goal_resting_m(self.configs.targets.R_world_object_goal)
         self.out.place_error_xy_m = float(np.hypot(err[0], err[1]))
         self.out.place_error_z_m = float(err[2])
         self.out.place_error_yaw_rad = yaw_error(obj.rotation, self.configs.targets.R_world_object_goal,

@@ -59,6 +59,8 @@ class SceneConfig:
         obstacle_length_m: Length of the wall along x (m).
         obstacle_offset_xy_m: Offset of the wall's centre from the midpoint between start and goal (m);
             by default 7 cm away from the robot, so the arm's forearm clears it at the grasp and the place.
+        obstacle_xy_m: The wall's centre (x, y) on the table (m), fixed wherever the start and the goal are
+            (e.g. for objects drawn anywhere around it); ``None`` (default): placed by ``obstacle_offset_xy_m``.
         timestep_s: Simulation time step (s).
     """
 
@@ -75,6 +77,7 @@ class SceneConfig:
     obstacle_thickness_m: float = 0.04
     obstacle_length_m: float = 0.20
     obstacle_offset_xy_m: tuple[float, float] = (0.07, 0.0)
+    obstacle_xy_m: tuple[float, float] | None = None
     timestep_s: float = 0.001
 
     def __post_init__(self) -> None:
@@ -103,14 +106,56 @@ class SceneConfig:
                                                      0.02, 1.0, unit="m"))
         set_(self, "obstacle_offset_xy_m", check_vector("scene.obstacle_offset_xy_m", self.obstacle_offset_xy_m,
                                                          2, -0.5, 0.5, unit="m"))
+        if self.obstacle_xy_m is not None:
+            set_(self, "obstacle_xy_m", check_vector("scene.obstacle_xy_m", self.obstacle_xy_m, 2, unit="m"))
         set_(self, "timestep_s", check_range("scene.timestep_s", self.timestep_s, 1e-4, 0.005, unit="s"))
         self._check_on_table("scene.start_xy_m", self.start_xy_m)
+        self.check_start_clear_of_obstacle()
         # The goal is checked by check_goal_on_table(), after its reachability: a goal far out of the
         # arm's reach must be reported as unreachable, which only the kinematics can tell.
 
     def check_goal_on_table(self) -> None:
-        """Raise :class:`ConfigError` unless the object's footprint at the goal (any yaw) lies on the table."""
+        """Raise :class:`ConfigError` unless the object's footprint at the goal (any yaw) lies on the table,
+        clear of the obstacle."""
         self._check_on_table("scene.goal_xy_m", self.goal_xy_m)
+        if self.obstacle:
+            lo, hi = self.obstacle_box_xy_m
+            near = np.clip(np.asarray(self.goal_xy_m), lo, hi)
+            gap = float(np.linalg.norm(np.asarray(self.goal_xy_m) - near)) - self.footprint_radius_m
+            if gap < 0.0:
+                raise ConfigError("scene.goal_xy_m", tuple(self.goal_xy_m),
+                                  f"the {self.object.name} at the goal (any yaw) would overlap the obstacle wall "
+                                  f"by {-gap * 1e3:.1f} mm (wall x in [{lo[0]:.3f}, {hi[0]:.3f}], y in "
+                                  f"[{lo[1]:.3f}, {hi[1]:.3f}] m)")
+
+    @property
+    def obstacle_centre_xy_m(self) -> tuple[float, float]:
+        """Centre (x, y) of the obstacle wall (m): ``obstacle_xy_m``, or midway between the object's start and
+        the goal plus ``obstacle_offset_xy_m``."""
+        if self.obstacle_xy_m is not None:
+            return (float(self.obstacle_xy_m[0]), float(self.obstacle_xy_m[1]))
+        mid = (np.asarray(self.start_xy_m) + np.asarray(self.goal_xy_m)) / 2 + np.asarray(self.obstacle_offset_xy_m)
+        return float(mid[0]), float(mid[1])
+
+    @property
+    def obstacle_box_xy_m(self) -> tuple[np.ndarray, np.ndarray]:
+        """Corners ``(lo, hi)`` (2,) of the obstacle wall's footprint on the table (m)."""
+        c = np.asarray(self.obstacle_centre_xy_m)
+        half = np.array([self.obstacle_length_m, self.obstacle_thickness_m]) / 2
+        return c - half, c + half
+
+    def check_start_clear_of_obstacle(self) -> None:
+        """Raise :class:`ConfigError` if the object at its start (its yaw) overlaps the obstacle wall."""
+        if not self.obstacle:
+            return
+        lo, hi = self.obstacle_box_xy_m
+        c, s_ = math.cos(self.start_yaw_rad), math.sin(self.start_yaw_rad)
+        v = self.object.geometry().vertices[:, :2] @ np.array([[c, s_], [-s_, c]]) + np.asarray(self.start_xy_m)
+        gap = float(np.max(np.concatenate([lo - v.max(axis=0), v.min(axis=0) - hi])))  # separating axis
+        if gap < 0.0:
+            raise ConfigError("scene.start_xy_m", tuple(self.start_xy_m),
+                              f"the {self.object.name} would start inside the obstacle wall (wall x in "
+                              f"[{lo[0]:.3f}, {hi[0]:.3f}], y in [{lo[1]:.3f}, {hi[1]:.3f}] m)")
 
     def _check_on_table(self, name: str, xy: tuple[float, float]) -> None:
         """The object's whole footprint (any yaw) must lie on the table top."""
@@ -134,6 +179,16 @@ class SceneConfig:
     def rest_z_m(self) -> float:
         """Height of the object's origin when it rests on the table (m)."""
         return self.table_height_m - self.object.geometry().z_min_m
+
+    def resting_z_m(self, R_world_object: np.ndarray) -> float:
+        """Height of the object's origin when it rests on the table turned by ``R_world_object`` (3, 3) (m):
+        on another face than its resting one (a dropped box on its side), the origin sits at another height."""
+        v = self.object.geometry().vertices
+        return float(self.table_height_m - np.min(v @ np.asarray(R_world_object, dtype=float)[2]))
+
+    def goal_resting_m(self, R_world_object: np.ndarray) -> np.ndarray:
+        """Where the object's origin comes to rest at the goal (3,) turned by ``R_world_object`` (m)."""
+        return np.array([*self.goal_xy_m, self.resting_z_m(R_world_object)])
 
     @property
     def start_pos_m(self) -> np.ndarray:
@@ -183,8 +238,10 @@ class SceneConfig:
             raise
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain data (the ``[scene]`` table; the object is its own table, :meth:`ObjectConfig.to_dict`)."""
-        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "object"}
+        """Plain data (the ``[scene]`` table; the object is its own table, :meth:`ObjectConfig.to_dict`). Fields
+        that are ``None`` (not set) are left out: TOML has no null, and their default is ``None``."""
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
+               if f.name != "object" and getattr(self, f.name) is not None}
         return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
 
     def with_object(self, **changes: Any) -> SceneConfig:

@@ -224,8 +224,8 @@ class ObjectConfig:
         if "parts" in changes:
             changes["parts"] = tuple(Part.from_mapping(p) if not isinstance(p, Part) else p for p in changes["parts"])
         if "kind" in changes and changes["kind"] != start.kind:  # a new shape: drop the old shape's fields
-            start = dataclasses.replace(start, kind=changes["kind"], size_m=_default_size(changes["kind"]),
-                                        axis="z", parts=(), mesh_path="")
+            fresh: dict[str, Any] = dict(size_m=_default_size(changes["kind"]), axis="z", parts=(), mesh_path="")
+            return dataclasses.replace(start, **{**fresh, **changes})
         return dataclasses.replace(start, **changes)
 
     def to_dict(self) -> dict[str, Any]:
@@ -386,8 +386,11 @@ def _library() -> dict[str, ObjectConfig]:
     can_src = ("330 ml drink can: 66.2 mm x 115.2 mm (the standard European 330 ml can body); 350 g = 330 ml of "
                "soft drink at ~1.04 kg/l plus a ~13 g aluminium can; friction 0.7 assumed (rubber on painted "
                "aluminium)")
-    roll_src = ("; rolling friction {:.2g} m = C_rr {:.2g} x radius, C_rr assumed for a firm object rolling on a "
-                "wooden table top")
+    roll_src = ("; rolling friction {:.2g} m = C_rr {:.2g} x radius (MuJoCo's rolling friction is a length: the "
+                "resisting torque over the normal force). C_rr: R. Cross, 'Coulomb's law for rolling friction', Am. "
+                "J. Phys. 84, 221 (2016), measured 0.001-0.03 for balls and cylinders rolling on hard and soft "
+                "surfaces, growing with the softness of the contact; a firm object on a wooden table top is taken "
+                "in that range")
     ball_r = 0.0335
     entries = [
         ObjectConfig(name="cube", kind="box", size_m=(0.040, 0.040, 0.040), mass_kg=0.150, friction=1.0,
@@ -409,15 +412,17 @@ def _library() -> dict[str, ObjectConfig]:
                      source=f"tennis ball: 67 mm, 58 g ({ITF}); friction 0.6 assumed (rubber on felt)"
                             + roll_src.format(0.03 * ball_r, 0.03).replace("firm object", "felt ball")),
         _l_bracket(),
-        ObjectConfig(name="mug", kind="mesh", mesh_path="mug.obj", mass_kg=0.345, friction=0.6,
-                     source="ceramic mug, the common 11 oz size: 81 mm across x 95 mm tall (3.2 x 3.75 in, the usual "
-                            "listing of the 11 oz mug), 5 mm wall and 7 mm bottom (assumed), 348 ml to the brim; a "
-                            "C handle 30.5 mm out from the wall, 10 x 14 mm section, a 46 x 20.5 mm finger hole "
-                            "(assumed); 345 g = its 150.1 cm^3 of ceramic (the mesh's volume) x 2.3 g/cm^3 (fired "
-                            "stoneware / porcelain, ~2.3-2.4 g/cm^3), inside the 250-400 g usually quoted for a "
-                            "240-355 ml ceramic mug; friction 0.6 assumed (rubber pads on glazed ceramic); standing "
-                            "on its bottom, origin on the body's axis at mid-height, handle towards +x; mesh and "
-                            "convex parts written by tools/make_meshes.py"),
+        ObjectConfig(name="mug", kind="mesh", mesh_path="mug.obj", mass_kg=0.229, friction=0.6,
+                     source="small ceramic coffee mug, ~7 oz (208 ml to the brim), in the 6-8 oz (180-240 ml) "
+                            "class of espresso-lungo / cappuccino mugs: 69 mm across x 80 mm tall (assumed: sized "
+                            "for the gripper, its body squeezed across at 69 mm < 74 mm, its 60 mm cavity taking the "
+                            "open inner finger of a pinch on the rim's wall), 4.5 mm wall and 6.5 mm bottom "
+                            "(assumed); a C handle 28.75 mm out from the wall, 10 x 14 mm section, a finger hole "
+                            "18.75 mm deep x 42 mm tall (assumed); 229 g = its 99.7 cm^3 of ceramic (the mesh's "
+                            "volume) x 2.3 g/cm^3 (fired stoneware / porcelain, ~2.3-2.4 g/cm^3); friction 0.6 "
+                            "assumed (rubber pads on glazed ceramic); standing on its bottom, origin on the body's "
+                            "axis at mid-height, handle towards +x; mesh and convex parts written by "
+                            "tools/make_meshes.py"),
     ]
     return {o.name: o for o in entries}
 

@@ -10,6 +10,7 @@ worker and turns it into its results line; an exception raised by the episode be
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import logging
 import math
 import time
@@ -23,7 +24,7 @@ import numpy as np
 from pickplace.errors import ConfigError, PickPlaceError
 from pickplace.task.episode import EpisodeConfig, EpisodeResult
 from pickplace.world.config import check_int, check_range, check_vector
-from pickplace.world.objects import ObjectConfig, scaled
+from pickplace.world.objects import LIBRARY, ObjectConfig, library_object, scaled
 
 log = logging.getLogger(__name__)
 
@@ -56,6 +57,7 @@ _SPEC_FIELDS: dict[str, tuple[float, float, str, str]] = {
     "pad_friction_scale": (0.0, 5.0, "", "fault"),
     "true_mass_scale": (0.01, 50.0, "", "fault"),
     "joint_noise_rad": (0.0, 0.05, "rad", "fault"),
+    "object_mass_kg": (1e-3, 50.0, "kg", "object"),
 }
 #: ``[randomization]`` keys of earlier versions: old name -> field, and how a range converts (``None``: as is;
 #: ``"mass"``: divided by the base object's mass; ``"edge"``: divided by the base cube's edge).
@@ -64,9 +66,13 @@ LEGACY_SPEC_KEYS: dict[str, tuple[str, str | None]] = {
     "cube_mass_kg": ("object_mass_scale", "mass"), "cube_size_m": ("object_size_scale", "edge"),
     "cube_friction": ("object_friction", None), "cube_mass_scale": ("true_mass_scale", None),
 }
+#: Fields added after the first campaigns: in :meth:`RandomizationSpec.to_dict` only when set.
+_NEWER_FIELDS = ("object_mass_kg",)
 #: The first fields of _SPEC_FIELDS; the push's direction and start are drawn right after them, and any field
 #: added later after those, so that adding a field never changes the values of the existing ones.
 _N_FIRST_FIELDS = 10
+#: Draws of a trial's parameters before giving up when each puts the object inside the obstacle.
+MAX_REDRAWS = 1000
 #: Duration of a randomized transport push when the base config's faults do not set one (s).
 PUSH_DURATION_S = 0.05
 #: Window, after the transport trajectory starts, in which a randomized push starts (s).
@@ -97,6 +103,11 @@ class RandomizationSpec:
         pad_friction_scale: The ``faults.pad_friction_scale`` of each trial, off by default.
         true_mass_scale: The ``faults.true_mass_scale`` of each trial (true / believed mass), off by default.
         joint_noise_rad: The ``faults.joint_noise_rad`` of each trial (rad), off by default.
+        object_mass_kg: The object's mass (kg), whatever the base object's (e.g. for a mix of objects); off by
+            default; not with ``object_mass_scale``.
+        objects: Names of library objects, one drawn uniformly per trial to replace the base config's object
+            (before its mass, size and friction are scaled); ``None`` (default): the base config's object. Its
+            draw comes after every other, so adding it changes none of their values.
     """
 
     start_dx_m: Range | None = (-0.05, 0.05)
@@ -112,8 +123,18 @@ class RandomizationSpec:
     pad_friction_scale: Range | None = None
     true_mass_scale: Range | None = None
     joint_noise_rad: Range | None = None
+    object_mass_kg: Range | None = None
+    objects: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
+        if self.objects is not None:
+            if isinstance(self.objects, str) or not isinstance(self.objects, (list, tuple)) or not self.objects:
+                raise ConfigError("randomization.objects", self.objects,
+                                  f"must be a non-empty list of library objects ({', '.join(LIBRARY)})")
+            for name in self.objects:
+                if name not in LIBRARY:
+                    raise ConfigError("randomization.objects", name, f"must be one of {', '.join(LIBRARY)}")
+            object.__setattr__(self, "objects", tuple(self.objects))
         for name, (lo, hi, unit, _) in _SPEC_FIELDS.items():
             value = getattr(self, name)
             if value is None:
@@ -122,11 +143,14 @@ class RandomizationSpec:
             if rng[0] > rng[1]:
                 raise ConfigError(f"randomization.{name}", value, "must be a range (lo, hi) with lo <= hi")
             object.__setattr__(self, name, rng)
+        if self.object_mass_kg is not None and self.object_mass_scale is not None:
+            raise ConfigError("randomization.object_mass_kg", self.object_mass_kg,
+                              "sets the mass itself: set object_mass_scale = false with it")
 
     @classmethod
     def off(cls) -> RandomizationSpec:
         """No randomization: every trial runs the base config (only the episode seed changes)."""
-        return cls(**dict.fromkeys(_SPEC_FIELDS))
+        return cls(**dict.fromkeys(_SPEC_FIELDS))  # objects: None by default
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], base_object: ObjectConfig | None = None) -> RandomizationSpec:
@@ -140,9 +164,13 @@ class RandomizationSpec:
         base_object = base_object if base_object is not None else ObjectConfig()
         changes: dict[str, Any] = {}
         for key, value in data.items():
+            if key == "objects":
+                changes["objects"] = None if value is False else value
+                continue
             name, convert = LEGACY_SPEC_KEYS.get(key, (key, None))
             if name not in _SPEC_FIELDS:
-                raise ConfigError(f"randomization.{key}", value, f"unknown key; allowed: {', '.join(_SPEC_FIELDS)}")
+                raise ConfigError(f"randomization.{key}", value,
+                                  f"unknown key; allowed: {', '.join(_SPEC_FIELDS)}, objects")
             if value is False:
                 changes[name] = None
             elif isinstance(value, (list, tuple)):
@@ -152,17 +180,21 @@ class RandomizationSpec:
                                   "must be a range of two numbers lo <= hi (e.g. [0.5, 2.0]) or false")
         return cls(**changes)
 
-    def to_dict(self) -> dict[str, list[float] | bool]:
+    def to_dict(self) -> dict[str, Any]:
         """Plain data, the inverse of :meth:`from_dict` (``false`` for a field that is not randomized)."""
-        return {name: list(getattr(self, name)) if getattr(self, name) is not None else False
-                for name in _SPEC_FIELDS}
+        out: dict[str, Any] = {name: list(getattr(self, name)) if getattr(self, name) is not None else False
+                               for name in _SPEC_FIELDS if name not in _NEWER_FIELDS or getattr(self, name)}
+        if self.objects is not None:  # newer fields only when set: earlier campaigns keep their identity
+            out["objects"] = list(self.objects)
+        return out
 
     def active(self) -> list[str]:
-        """Names of the randomized fields (those not ``None``)."""
+        """Names of the randomized range fields (those not ``None``)."""
         return [name for name in _SPEC_FIELDS if getattr(self, name) is not None]
 
-    def sample(self, rng: np.random.Generator) -> dict[str, float]:
-        """One draw: randomized field name -> value (the same number of draws whatever is randomized)."""
+    def sample(self, rng: np.random.Generator) -> dict[str, Any]:
+        """One draw: randomized field name -> value, and ``object`` -> a library name if ``objects`` is set (the
+        same number of draws whatever is randomized)."""
         u = rng.random(len(_SPEC_FIELDS) + 3)  # + the push's direction (2) and start (1)
         first = _N_FIRST_FIELDS
         draws = np.concatenate([u[:first], u[first + 3:]])  # per field, in _SPEC_FIELDS order
@@ -176,6 +208,9 @@ class RandomizationSpec:
             out["push_azimuth_rad"] = float(2 * math.pi * a)
             out["push_elevation_rad"] = float(math.asin(2 * b - 1))
             out["push_start_s"] = float(PUSH_START_S[0] + c * (PUSH_START_S[1] - PUSH_START_S[0]))
+        pick = float(rng.random())
+        if self.objects is not None:
+            out["object"] = self.objects[min(int(pick * len(self.objects)), len(self.objects) - 1)]
         return out
 
 
@@ -197,7 +232,7 @@ def _legacy_range(key: str, value: Any, convert: str | None, base: ObjectConfig)
         raise ConfigError(f"randomization.{key}", value, "must be a range of two numbers lo <= hi") from None
 
 
-def apply_params(base: EpisodeConfig, params: Mapping[str, float]) -> EpisodeConfig:
+def apply_params(base: EpisodeConfig, params: Mapping[str, Any]) -> EpisodeConfig:
     """The base config with sampled parameters (names of :class:`RandomizationSpec` fields) applied."""
     sc = base.scene
     changes: dict[str, Any] = {}
@@ -211,11 +246,13 @@ def apply_params(base: EpisodeConfig, params: Mapping[str, float]) -> EpisodeCon
         changes["start_yaw_rad"] = sc.start_yaw_rad + params["start_dyaw_rad"]
     if "goal_dyaw_rad" in params:
         changes["goal_yaw_rad"] = sc.goal_yaw_rad + params["goal_dyaw_rad"]
-    obj = sc.object
+    obj = library_object(params["object"]) if "object" in params else sc.object
     if "object_size_scale" in params:
         obj = scaled(obj, params["object_size_scale"])
     if "object_mass_scale" in params:
         obj = dataclasses.replace(obj, mass_kg=obj.mass_kg * params["object_mass_scale"])
+    if "object_mass_kg" in params:
+        obj = dataclasses.replace(obj, mass_kg=params["object_mass_kg"])
     if "object_friction" in params:
         obj = dataclasses.replace(obj, friction=params["object_friction"])
     if obj != sc.object:
@@ -244,12 +281,17 @@ _SCENE_TO_SPEC = {
 
 
 def _check_extremes(base: EpisodeConfig, spec: RandomizationSpec) -> None:
-    """Every corner of the randomization box gives a valid scene, with the object on the table at start and goal."""
+    """Every corner of the randomization box gives a valid scene, with the object on the table at start and goal
+    (for each of ``objects``). A start inside the obstacle is not an error: the trial draws again
+    (:func:`make_trial`)."""
     active = [name for name in spec.active() if _SPEC_FIELDS[name][3] in ("offset", "object")]  # scene fields
-    for corner in range(1 << len(active)):
-        params = {name: getattr(spec, name)[(corner >> k) & 1] for k, name in enumerate(active)}
+    free = dataclasses.replace(base, scene=dataclasses.replace(base.scene, obstacle=False))
+    for corner, name in itertools.product(range(1 << len(active)), spec.objects or (None,)):
+        params: dict[str, Any] = {name: getattr(spec, name)[(corner >> k) & 1] for k, name in enumerate(active)}
+        if name is not None:
+            params["object"] = name
         try:
-            apply_params(base, params).scene.check_goal_on_table()
+            apply_params(free, params).scene.check_goal_on_table()
         except ConfigError as exc:
             names = [n for n in _SCENE_TO_SPEC.get(exc.field.split("[")[0], ()) if n in active] or active
             raise ConfigError("randomization." + "/".join(names), [getattr(spec, n) for n in names],
@@ -314,7 +356,7 @@ class Trial:
 
     index: int
     seed: int
-    params: dict[str, float]
+    params: dict[str, Any]
     config: EpisodeConfig
 
 
@@ -328,8 +370,18 @@ def make_trial(campaign: CampaignConfig, index: int) -> Trial:
     """Trial ``index`` of ``campaign``: its sampled parameters, config and seed."""
     check_int("trial", index, 0)
     rng = np.random.default_rng(np.random.SeedSequence(campaign.seed, spawn_key=(index, 1)))
-    params = campaign.randomization.sample(rng)
-    return Trial(index, trial_seed(campaign.seed, index), params, apply_params(campaign.base, params))
+    for _ in range(MAX_REDRAWS):
+        params = campaign.randomization.sample(rng)
+        try:
+            config = apply_params(campaign.base, params)
+            config.scene.check_goal_on_table()
+        except ConfigError as exc:
+            if "obstacle" not in str(exc):
+                raise
+            continue  # drawn inside the wall: draw again from the same stream
+        return Trial(index, trial_seed(campaign.seed, index), params, config)
+    raise ConfigError("randomization", campaign.randomization.to_dict(),
+                      f"put the object inside the obstacle at its start or goal in {MAX_REDRAWS} draws running")
 
 
 def trial_config(campaign: CampaignConfig, index: int) -> tuple[EpisodeConfig, int]:

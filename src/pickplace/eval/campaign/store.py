@@ -60,7 +60,7 @@ class TrialRecord:
     """
 
     trial: int
-    params: dict[str, float]
+    params: dict[str, Any]
     result: dict[str, Any]
 
     @classmethod

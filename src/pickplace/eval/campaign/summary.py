@@ -101,6 +101,32 @@ class RetryCount:
 
 
 @dataclass(frozen=True)
+class ObjectStats:
+    """The figures of the trials of one object (campaigns that draw the object per trial).
+
+    Attributes:
+        name: The object's name.
+        trials: Its trials.
+        successes: Its successful trials.
+        rejected: Its trials rejected before the arm moved (IDLE: it cannot be held, no grasp reaches it).
+        success_rate_attempted: successes / (trials - rejected): how often the episodes the robot started
+            succeeded.
+        success_rate_attempted_ci95: 95% Wilson interval of that rate.
+        place_error_xy_rms_m: RMS horizontal place error of its successes (m).
+        grasps: Successful trials per approach of the executed grasp (``top``, ``tilted``, ``side``).
+    """
+
+    name: str
+    trials: int
+    successes: int
+    rejected: int
+    success_rate_attempted: float
+    success_rate_attempted_ci95: tuple[float, float]
+    place_error_xy_rms_m: float
+    grasps: dict[str, int]
+
+
+@dataclass(frozen=True)
 class CampaignSummary:
     """Figures of a campaign. Lengths in m, times in s, angles in rad; NaN where there is nothing to measure.
 
@@ -135,6 +161,10 @@ class CampaignSummary:
         worker_failure_rate: worker_failures / trials.
         failures: Failures grouped by phase, kind and reason, most frequent first.
         failed_trials: Every failed trial with its reproduce command, by index.
+        success_rate_attempted: successes / (trials - failed_before_motion): the rate of the episodes in which
+            the arm moved.
+        success_rate_attempted_ci95: 95% Wilson interval of that rate.
+        by_object: The figures per object, by name (one entry when every trial has the same object).
     """
 
     trials: int
@@ -160,6 +190,9 @@ class CampaignSummary:
     worker_failure_rate: float
     failures: tuple[FailureGroup, ...]
     failed_trials: tuple[FailedTrial, ...]
+    success_rate_attempted: float = math.nan
+    success_rate_attempted_ci95: tuple[float, float] = (math.nan, math.nan)
+    by_object: tuple[ObjectStats, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready data (NaN becomes None)."""
@@ -221,7 +254,11 @@ def summarize(records: Sequence[TrialRecord], out_dir: str | Path = "OUT") -> Ca
                     reproduce_command(trial_toml_path(out_dir, r.trial), r.seed))
         for r in failed
     )
+    attempted = n - before
     return CampaignSummary(
+        success_rate_attempted=k / attempted if attempted else math.nan,
+        success_rate_attempted_ci95=wilson_interval(k, attempted),
+        by_object=_by_object(records),
         trials=n,
         successes=k,
         success_rate=k / n if n else math.nan,
@@ -248,14 +285,45 @@ def summarize(records: Sequence[TrialRecord], out_dir: str | Path = "OUT") -> Ca
     )
 
 
+def object_name(record: TrialRecord) -> str:
+    """The name of the object a trial ran with ("?" if its record does not say)."""
+    config = record.result.get("config") or {}
+    obj = config.get("scene", {}).get("object") if isinstance(config.get("scene"), dict) else None
+    obj = obj if isinstance(obj, dict) else config.get("object")
+    name = obj.get("name") if isinstance(obj, dict) else None
+    return name if isinstance(name, str) else str(record.params.get("object", "?"))
+
+
+def _by_object(records: Sequence[TrialRecord]) -> tuple[ObjectStats, ...]:
+    groups: dict[str, list[TrialRecord]] = {}
+    for r in records:
+        groups.setdefault(object_name(r), []).append(r)
+    out = []
+    for name in sorted(groups):
+        rs = groups[name]
+        ok = [r for r in rs if r.success]
+        rejected = sum(r.failure_phase == BEFORE_MOTION_PHASE for r in rs if not r.success)
+        attempted = len(rs) - rejected
+        place = _finite(r.result.get("place_error_xy_m") for r in ok)
+        grasps: dict[str, int] = {}
+        for r in ok:
+            kind = str(r.result.get("grasp_approach") or "?")
+            grasps[kind] = grasps.get(kind, 0) + 1
+        out.append(ObjectStats(name, len(rs), len(ok), rejected, len(ok) / attempted if attempted else math.nan,
+                               wilson_interval(len(ok), attempted),
+                               _stat(place, lambda a: np.sqrt(np.mean(a**2))), dict(sorted(grasps.items()))))
+    return tuple(out)
+
 
 __all__ = [
     "BEFORE_MOTION_PHASE",
     "CampaignSummary",
     "FailedTrial",
     "FailureGroup",
+    "ObjectStats",
     "RetryCount",
     "normalize_reason",
+    "object_name",
     "retries_of",
     "summarize",
     "wilson_interval",
