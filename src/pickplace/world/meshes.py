@@ -141,8 +141,8 @@ def load_mesh(path: str, scale: float) -> trimesh.Trimesh:
     not a grasp: a mesh is rejected when the minimum width of its convex hull (its thinnest caliper width
     over all directions) exceeds ``MAX_GRIP_WIDTH_M`` (the 84 mm opening less 5 mm per side) **and** no
     part of it is thin enough to pinch: no face whose inward ray meets an opposite face (normals
-    antiparallel within ``PINCH_MAX_ANGLE_DEG``) within ``MAX_GRIP_WIDTH_M``. So a mug (81 mm across)
-    passes by its 5 mm wall and its handle, a 200 mm ball does not. So an object with a thin graspable
+    antiparallel within ``PINCH_MAX_ANGLE_DEG``) within ``MAX_GRIP_WIDTH_M``. So an 11 oz mug (81 mm
+    across) would pass by its 5 mm wall and its handle, a 200 mm ball does not. So an object with a thin graspable
     part (a handle) inside a hull wider than 74 mm everywhere passes only if a ray finds that part; the
     rule does not ask whether a pad can reach the part, or whether the part is thicker than the closed
     gripper (``MIN_GRIP_WIDTH_M``): grasp synthesis is the real test. The hull's width is exact for
