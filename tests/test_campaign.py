@@ -64,7 +64,8 @@ SUMMARY_KEYS = {
     "cycle_time_mean_s", "cycle_time_p95_s", "plan_time_median_s", "plan_time_p95_s", "tracking_error_max_rad",
     "tcp_tracking_error_max_m", "wall_time_mean_s", "successes_with_recovery", "retries_histogram",
     "failed_before_motion", "failed_before_motion_rate", "failed_after_motion", "failed_after_motion_rate",
-    "worker_failures", "worker_failure_rate", "failures", "failed_trials",
+    "worker_failures", "worker_failure_rate", "failures", "failed_trials", "success_rate_attempted",
+    "success_rate_attempted_ci95", "by_object",
 }
 #: Per-trial limit of the isolation tests (s): far above a normal trial (~0.7 s on an idle machine, 4-5 s with both
 #: cores kept busy by two other processes), counted only once a worker that is up takes the trial; the hanging trial
@@ -199,6 +200,9 @@ def test_summary_counts_recoveries_retries_and_when_trials_failed() -> None:
     assert s.failed_before_motion_rate == pytest.approx(2 / 9)
     assert s.failed_after_motion_rate == pytest.approx(1 / 9)
     assert s.worker_failure_rate == pytest.approx(1 / 9)
+    # the rate of the attempted trials: the 2 rejected in IDLE are left out (the worker crash is not)
+    assert s.success_rate_attempted == pytest.approx(5 / 7)
+    assert s.success_rate_attempted_ci95 == pytest.approx(wilson_interval(5, 7))
     data = json.loads(json.dumps(s.to_dict()))
     assert set(data) == SUMMARY_KEYS
     assert data["retries_histogram"] == [{"retries": 0, "trials": 4}, {"retries": 1, "trials": 3},
