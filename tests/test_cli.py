@@ -30,7 +30,7 @@ def test_inspect_json(capsys) -> None:
 
 def _check_ik(inspect_json: dict) -> None:
     ik = inspect_json["ik"]
-    assert [r["name"] for r in ik] == ["pregrasp", "grasp", "preplace", "place"]
+    assert [r["name"] for r in ik] == ["pregrasp", "grasp", "lift", "preplace", "place", "retreat"]
     for r in ik:
         assert r["position_error_m"] < 1e-4, r["name"]
         assert r["orientation_error_rad"] < 1e-4, r["name"]

@@ -12,10 +12,12 @@ import numpy as np
 import pytest
 
 from pickplace.errors import UnreachableTarget
-from pickplace.grasping.configurations import candidate_grasps, solve_grasp_configurations, start_pose
+from pickplace.grasping.configurations import candidate_grasps, home_tcp, solve_grasp_configurations, start_pose
 from pickplace.grasping.synthesis import ApproachKind
-from pickplace.grasping.targets import raised
-from pickplace.robot.ik import solve_ik
+from pickplace.grasping.targets import grasp_targets, raised
+from pickplace.motion.collision import CollisionChecker, CollisionPolicy
+from pickplace.robot.ik import solve_ik, solve_line
+from pickplace.robot.kinematics import frame_pose, rotation_distance
 from pickplace.robot.model import Robot, build
 from pickplace.task.episode import EpisodeConfig, run_episode
 from pickplace.world.config import SceneConfig
@@ -79,3 +81,60 @@ def test_episode_beside_a_wall_succeeds_with_a_tilted_grasp_and_reports_it() -> 
     assert result.grasps_tried > 1
     assert result.place_error_xy_m <= cfg.machine.place_tolerance_xy_m
     assert result.to_dict()["grasp_approach"] == result.grasp_approach
+
+
+def test_a_grasp_whose_straight_approach_sweeps_through_the_wall_is_not_taken() -> None:
+    """A cube beyond the wall (0.60, 0.16): the best-ranked grasp is top-down, and IK of its pregrasp and its
+    grasp, each alone, finds collision-free configurations, but on two IK branches half a turn apart. The arm
+    descends continuously from the pregrasp, on the pregrasp's branch, and that branch sweeps the forearm
+    through the wall 5 cm down. The chain follows the descent waypoint by waypoint, rejects that grasp and
+    takes the next one; its approach, re-checked independently every 2 mm at actual contact, is clear."""
+    scene = dataclasses.replace(SceneConfig(), obstacle=True, obstacle_xy_m=(0.42, 0.0), start_xy_m=(0.60, 0.16))
+    robot = build(scene)
+    T_object = start_pose(robot)
+    first = candidate_grasps(robot, T_object)[0]
+    targets = grasp_targets(scene, T_object, first.T_object_tcp, first.width_m, home_tcp(robot))
+    above = CollisionChecker(robot, CollisionPolicy(margin_m=0.01))
+    touching = CollisionChecker(robot, CollisionPolicy(margin_m=0.0))
+    pre = solve_ik(robot, targets.pregrasp, robot.home_q, "pregrasp", is_valid=above.is_valid)
+    alone = solve_ik(robot, targets.grasp, pre.q, "grasp", is_valid=touching.is_valid)  # each end alone: fine
+    assert float(np.max(np.abs(alone.q - pre.q))) > 1.0  # ... on another branch
+    with pytest.raises(UnreachableTarget, match=r"straight move to it is in collision .* forearm_collision <-> "
+                                                 r"obstacle"):
+        solve_grasp_configurations(robot, clearance_m=0.01, grasps=[first])
+    configs = solve_grasp_configurations(robot, clearance_m=0.01)
+    assert configs.grasps_tried > 1
+    fine = solve_line(robot, configs.targets.grasp, configs.pregrasp.q, "grasp", is_valid=touching.is_valid,
+                      step_m=0.002)
+    np.testing.assert_allclose(fine.q, configs.grasp.q, rtol=0, atol=2e-3)  # the same branch, the same end
+
+
+def test_solve_line_follows_the_branch_and_reports_where_it_fails(robot: Robot) -> None:
+    """A 15 cm descent from the default pregrasp: every waypoint on the line; a check that refuses the tcp
+    below a height fails the move there, naming the distance along it."""
+    configs = solve_grasp_configurations(robot)
+    start, target = configs.pregrasp.q, configs.targets.grasp
+    seen: list[np.ndarray] = []
+
+    def record(q: np.ndarray) -> bool:
+        seen.append(q.copy())
+        return True
+
+    result = solve_line(robot, target, start, "grasp", is_valid=record)
+    assert len(seen) == 15  # one waypoint per centimetre
+    data = robot.pin.createData()
+    p0, p1 = configs.targets.pregrasp.translation, target.translation
+    for k, q in enumerate(seen, start=1):
+        T = frame_pose(robot.pin, data, robot.pin_q(q), robot.pin_tcp_frame)
+        np.testing.assert_allclose(T.translation, p0 + k / 15 * (p1 - p0), rtol=0, atol=2e-4)
+        assert rotation_distance(T.rotation, target.rotation) < 2e-4
+    assert max(float(np.max(np.abs(b - a))) for a, b in zip([start, *seen[:-1]], seen, strict=True)) < 0.1
+    assert result.success and result.position_error_m < 1e-4
+    z_floor = float(p1[2]) + 0.05
+
+    def above_floor(q: np.ndarray) -> bool:
+        return float(frame_pose(robot.pin, data, robot.pin_q(q), robot.pin_tcp_frame).translation[2]) > z_floor
+
+    with pytest.raises(UnreachableTarget, match=r"in collision 0\.110 of 0\.150 m along") as info:
+        solve_line(robot, target, start, "grasp", is_valid=above_floor)
+    assert info.value.q is not None and not above_floor(info.value.q)

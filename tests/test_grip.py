@@ -6,6 +6,7 @@ is rejected before the arm moves, and motions that carry it are slowed down unti
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -86,3 +87,36 @@ def test_a_box_the_pads_cannot_hold_is_rejected_before_moving() -> None:
     assert (r.failure_phase, r.failure_kind) == ("IDLE", "CannotHold")
     assert "needs 36.8 N of friction" in r.failure_reason and "the pads give 16.0 N" in r.failure_reason
     assert r.cycle_time_s == 0.0
+
+
+def test_an_off_centre_object_needs_torque_and_a_heavy_one_is_rejected(robot: Robot) -> None:
+    """The L-bracket gripped across its length at the upright leg: its centre of mass lies 13.6 mm off the
+    closing axis (the legs' centroids weighted by volume, computed here by hand). At 119 g the weight's torque
+    is far within the pads' torsional friction; at 1.65 kg it is not (at friction 0.6 the force alone would
+    hold), and the episode refuses it in IDLE."""
+    bracket = library_object("l_bracket")
+    flat, upright = bracket.parts
+    com_x = (flat.volume_m3 * flat.pos_m[0] + upright.volume_m3 * upright.pos_m[0]) / (flat.volume_m3
+                                                                                         + upright.volume_m3)
+    # top-down, closing along the bracket's length (its y), the tcp in the upright leg's mid-plane
+    T_object_tcp = pin.SE3(np.diag([1.0, -1.0, -1.0]), np.array([upright.pos_m[0], 0.0, 0.025]))
+    cap = grip_capacity(robot, bracket, T_object_tcp.inverse(), 0.040, 1.25, up_tcp=T_object_tcp.rotation[2])
+    assert cap.lever_m == pytest.approx(abs(com_x - upright.pos_m[0]), abs=1e-9)
+    assert cap.lever_m == pytest.approx(0.0136, abs=2e-4)
+    assert cap.torsion_m == pytest.approx(0.005, abs=1e-12)  # the pads' (and the object's) torsional friction
+    assert cap.torque_capacity_nm == pytest.approx(2 * 0.005 * 20.0, abs=1e-9)
+    assert cap.holds_at_rest
+    heavy = dataclasses.replace(cap, mass_kg=1.65)
+    assert heavy.needed_at_rest_n < heavy.friction_force_n  # the force alone would hold ...
+    assert not heavy.holds_at_rest  # ... the torque does not
+    with pytest.raises(CannotHold, match=r"turns it about the grip axis with 0\.27\d N m .* resist 0\.200 N m"):
+        heavy.require_holdable("l_bracket")
+    # an acceleration budget that also respects the torque
+    assert cap.acceleration_budget_m_s2 == pytest.approx(
+        min(cap.friction_force_n, cap.torque_capacity_nm / cap.lever_m) / (cap.mass_kg * 1.25), rel=1e-12)
+    config = EpisodeConfig().with_object(**{**dataclasses.asdict(bracket), "mass_kg": 1.65, "friction": 0.6,
+                                            "parts": bracket.parts})
+    result = run_episode(config)
+    assert not result.success and result.failure_phase == "IDLE" and result.failure_kind == "CannotHold"
+    assert "turns it about the grip axis" in result.failure_reason
+    assert result.cycle_time_s == 0.0

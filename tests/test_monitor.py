@@ -49,3 +49,15 @@ def test_the_robot_touching_the_world_is_always_a_fault(robot: Robot) -> None:
     assert not mon.allowed(mon.cls[g["pad"]], mon.cls[g["object"]])
     mon.allow_hand_object = True
     assert mon.allowed(mon.cls[g["pad"]], mon.cls[g["object"]])
+
+
+def test_a_falling_object_may_land_on_the_arm_only_while_it_falls(robot: Robot) -> None:
+    """During a recovery the arm stands still while the dropped object comes to rest: landing on the arm is the
+    object's doing. Otherwise the arm touching the object is a fault."""
+    mon = StepMonitor(robot, None, slip_tolerance_m=0.005)
+    g = _ids(robot)
+    assert not mon.allowed(mon.cls[g["arm"]], mon.cls[g["object"]])
+    mon.object_falling = True
+    assert mon.allowed(mon.cls[g["arm"]], mon.cls[g["object"]])
+    assert mon.allowed(mon.cls[g["pad"]], mon.cls[g["object"]])
+    assert not mon.allowed(mon.cls[g["arm"]], mon.cls[g["table"]])  # the arm itself still touches nothing

@@ -7,6 +7,11 @@ subclass carries the numbers that explain it in its message.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import numpy as np
+
 
 class PickPlaceError(Exception):
     """Base class of every error raised on purpose by pickplace."""
@@ -42,6 +47,8 @@ class UnreachableTarget(PickPlaceError):
         target: Name of the target (e.g. ``"pregrasp"``).
         position_error_m: Residual position error at the best iterate (m).
         orientation_error_rad: Residual orientation error at the best iterate (rad).
+        q: The arm configuration (6,) (rad) where it failed, when one is known (e.g. the waypoint of a straight
+            move that collides), else None.
     """
 
     def __init__(
@@ -50,8 +57,10 @@ class UnreachableTarget(PickPlaceError):
         reason: str,
         position_error_m: float = float("nan"),
         orientation_error_rad: float = float("nan"),
+        q: np.ndarray | None = None,
     ) -> None:
         self.target = target
+        self.q = q
         self.reason = reason
         self.position_error_m = position_error_m
         self.orientation_error_rad = orientation_error_rad
@@ -107,15 +116,34 @@ class CannotHold(PickPlaceError):
     squeeze gives, with the safety factor.
 
     Attributes:
-        needed_n: Friction force the object needs, safety factor included (N).
+        needed_n: Friction force the object needs, safety factor included (N) (nan if it is the torque).
         available_n: Friction force the pads can transmit, ``2 mu F`` (N).
+        needed_nm: Torque about the closing axis the object needs, safety factor included (N m), when the
+            weight turns it in the grip (:meth:`turning`), else nan.
+        available_nm: Torque the pads' torsional friction resists (N m), or nan.
     """
 
     def __init__(self, name: str, needed_n: float, available_n: float, mass_kg: float, friction: float,
                  pad_force_n: float, safety_factor: float, accel_m_s2: float = 9.81) -> None:
         self.needed_n = needed_n
         self.available_n = available_n
+        self.needed_nm = self.available_nm = float("nan")
         super().__init__(
             f"the pads cannot hold the {name}: it needs {needed_n:.1f} N of friction ({mass_kg:.3f} kg x "
             f"{accel_m_s2:.2f} m/s^2 x safety factor {safety_factor:g}) and the pads give {available_n:.1f} N "
             f"(2 x friction {friction:g} x {pad_force_n:.1f} N per pad)")
+
+    @classmethod
+    def turning(cls, name: str, needed_nm: float, available_nm: float, mass_kg: float, lever_m: float,
+                torsion_m: float, pad_force_n: float, safety_factor: float) -> CannotHold:
+        """The object's weight turns it in the grip: its torque about the closing axis exceeds what the pads'
+        torsional friction resists (``needed_nm``, ``available_nm``: N m)."""
+        exc = cls.__new__(cls)
+        exc.needed_n = exc.available_n = float("nan")
+        exc.needed_nm, exc.available_nm = needed_nm, available_nm
+        PickPlaceError.__init__(
+            exc, f"the pads cannot hold the {name}: its weight turns it about the grip axis with {needed_nm:.3f} N m "
+                 f"({mass_kg:.3f} kg x 9.81 m/s^2 x its centre of mass {lever_m * 1e3:.1f} mm off the axis x safety "
+                 f"factor {safety_factor:g}) and the pads resist {available_nm:.3f} N m (2 x torsional friction "
+                 f"{torsion_m * 1e3:.1f} mm x {pad_force_n:.1f} N per pad)")
+        return exc

@@ -7,16 +7,17 @@ mass's distance from the grip axis, top-down before tilted before side approache
 turn from its ``home`` orientation turned to face the object (a proxy for the joint-space distance that costs no
 IK). Clearance from the obstacles and reachability are what the IK below checks.
 
-Grasps are tried in that order until one works (at most ``max_grasps``). For each, the chain follows the
-motion: ``pregrasp`` is solved from ``home``, ``grasp`` from ``pregrasp`` (so the straight approach stays on
-one IK branch), ``lift`` from ``grasp``, ``preplace`` from ``lift`` and ``place`` from ``preplace``. Each is
-checked with the collision policy of the moment it is reached: open gripper around the resting object at the
-grasp, the object carried at ``lift``, ``preplace`` and ``place`` (where it may touch the table).
+Grasps are tried in that order until one works (at most ``max_grasps``). For each, the targets are solved in
+the order the arm visits them, each from the one before (see :class:`_Chain`): the moves the arm makes along
+a straight line (approach, lift, set-down, retreat) are followed the way the controller makes them, waypoint
+by waypoint, so a grasp whose approach sweeps the forearm through a wall, or whose lift leaves the carried
+object beside one, is rejected here, before the arm moves, and the next grasp is tried.
 """
 
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -25,27 +26,34 @@ import numpy as np
 import pinocchio as pin
 
 from pickplace.errors import UnreachableTarget
+from pickplace.grasping.grip import GripCapacity, grip_capacity
 from pickplace.grasping.synthesis import GraspCandidate, RankWeights, rank, synthesize, world_candidates
 from pickplace.grasping.targets import (
     CLEARANCE_M,
     LIFT_STEP_M,
     MAX_RAISE_M,
     GraspTargets,
+    backed_off,
     grasp_targets,
     raised,
     wrist_reference,
 )
 from pickplace.motion.collision import CollisionChecker, CollisionPolicy
 from pickplace.robot.gripper import GripperGeometry
-from pickplace.robot.ik import IKConfig, IKResult, solve_ik
-from pickplace.robot.kinematics import frame_pose, rot_z, rotation_distance
+from pickplace.robot.ik import IKConfig, IKResult, solve_ik, solve_line
+from pickplace.robot.kinematics import frame_pose, rot_z
 from pickplace.robot.model import Robot
 from pickplace.world.objects import ObjectConfig
 
-#: Below this distance (m) the lift target is the pregrasp (a top-down grasp): it is not solved twice.
-_SAME_POSE_M = 1e-6
 #: Most grasps tried (in ranked order) before the object is declared out of reach.
 MAX_GRASPS = 64
+#: Clearance the straight moves keep from walls, obstacles and the floor (m) (not from the table, which the
+#: fingers reach down to): the Cartesian controller keeps the tcp within 0.5 mm of its line (the largest tcp
+#: error of 200 episodes of the mixed obstacle campaign) and the line is checked every ``LINE_STEP_M``.
+LINE_CUSHION_M = 0.003
+#: How far the tcp backs off from the place along its approach after the release (m), by default
+#: (``MachineConfig.retract_height_m``).
+RETREAT_M = 0.06
 
 
 @dataclass(frozen=True)
@@ -54,8 +62,10 @@ class GraspConfigurations:
 
     Attributes:
         targets: The tcp poses they reach.
-        pregrasp, grasp, lift, preplace, place: The IK results (``.q`` is the arm configuration (6,) in rad).
+        pregrasp, grasp, lift, preplace, place, retreat: The IK results (``.q`` is the arm configuration (6,) in
+            rad); ``retreat`` is where the hand ends after backing off from the place (and rising if needed).
         held_finger_m: Finger travel while the object is held (m).
+        chosen: The grasp.
         grasps_tried: How many grasps were tried before this one worked (1: the first).
     """
 
@@ -65,14 +75,14 @@ class GraspConfigurations:
     lift: IKResult
     preplace: IKResult
     place: IKResult
+    retreat: IKResult
     held_finger_m: float
     chosen: GraspCandidate
     grasps_tried: int = 1
 
     def results(self) -> list[IKResult]:
-        """The results in visiting order (the lift only if it is not the pregrasp, as for a top-down grasp)."""
-        lift = [] if self.lift is self.pregrasp else [self.lift]
-        return [self.pregrasp, self.grasp, *lift, self.preplace, self.place]
+        """The results in visiting order."""
+        return [self.pregrasp, self.grasp, self.lift, self.preplace, self.place, self.retreat]
 
     def carrying_checker(self, robot: Robot, margin_m: float, allow_object_table: bool = False) -> CollisionChecker:
         """A checker for the arm carrying the object as grasped here (see :func:`carrying_checker`)."""
@@ -141,6 +151,8 @@ def solve_grasp_configurations(
     clearance_m: float = 0.0,
     grasps: Sequence[GraspCandidate] | None = None,
     max_grasps: int = MAX_GRASPS,
+    retreat_m: float = RETREAT_M,
+    safety_factor: float | None = None,
 ) -> GraspConfigurations:
     """Targets for the scene's object and goal, solved to joint configurations with the first grasp that works.
 
@@ -150,39 +162,38 @@ def solve_grasp_configurations(
         T_world_object: The object's pose; default: its start in the scene.
         world: The simulation state the solutions must be collision free in (where the object rests, anything
             that moved); default: the scene's initial state.
-        clearance_m: Clearance the pregrasp, lift and preplace configurations must keep from the table, floor
-            and obstacles (m), e.g. the planner's margin so that it accepts them as goals. The grasp and the
-            place are checked at contact (the fingers work 5 mm above the table).
+        clearance_m: Clearance the pregrasp, lift, preplace and retreat configurations must keep from the
+            table, floor and obstacles (m), e.g. the planner's margin so that it accepts them as the ends of
+            its paths. The straight moves between them keep ``LINE_CUSHION_M`` from walls and touch the table
+            only where they must.
         grasps: The grasps to try, in order; default: :func:`candidate_grasps`.
         max_grasps: Most grasps tried.
+        retreat_m: How far the tcp backs off from the place after the release (m).
+        safety_factor: If given, grasps whose pads cannot hold the object's (believed) weight with this margin
+            are skipped (:mod:`pickplace.grasping.grip`): a narrow grasp squeezes less.
 
     Raises:
+        CannotHold: ``safety_factor`` is given and no grasp's pads can hold the object (the strongest is named).
         UnreachableTarget: no grasp reaches every target collision free (the first grasp's failure is named),
             or none fits the gripper and clears the table where the object rests.
     """
     T_world_object = start_pose(robot) if T_world_object is None else T_world_object
     geom = GripperGeometry.measure(robot)
     T_home = home_tcp(robot)
-    grasps = (candidate_grasps(robot, T_world_object) if grasps is None else list(grasps))[:max_grasps]
+    grasps = candidate_grasps(robot, T_world_object) if grasps is None else list(grasps)
+    if grasps and safety_factor is not None:
+        grasps = holdable(robot, grasps, safety_factor, T_world_object)
+    grasps = grasps[:max_grasps]
     if not grasps:
         raise UnreachableTarget("grasp", f"no grasp of the {robot.scene.object.name} fits the gripper and clears "
                                          "the table where it rests")
-    free = CollisionChecker(robot, CollisionPolicy(margin_m=0.0))
-    above = CollisionChecker(robot, CollisionPolicy(margin_m=clearance_m))
-    for checker in (free, above):
-        if world is not None:
-            checker.set_world(world)
+    chain = _Chain(robot, ik_config, world, clearance_m, retreat_m)
     first_error: UnreachableTarget | None = None
     for tried, grasp in enumerate(grasps, start=1):
         targets = grasp_targets(robot.scene, T_world_object, grasp.T_object_tcp, grasp.width_m, T_home)
         held = geom.contact_travel_m(grasp.width_m)
-        carry = carrying_checker(robot, targets.T_tcp_object, held, margin_m=clearance_m)
-        place = carrying_checker(robot, targets.T_tcp_object, held, margin_m=0.0, allow_object_table=True)
-        if world is not None:
-            for checker in (carry, place):
-                checker.set_world(world)
         try:
-            targets, results = _solve_chain(robot, targets, ik_config, free, above, carry, place)
+            targets, results = chain.solve(targets, held)
         except UnreachableTarget as exc:
             first_error = first_error or exc
             continue
@@ -194,52 +205,166 @@ def solve_grasp_configurations(
                             first_error.position_error_m, first_error.orientation_error_rad)
 
 
-def _solve_chain(robot: Robot, targets: GraspTargets, ik_config: IKConfig | None, free: CollisionChecker,
-                 above: CollisionChecker, carry: CollisionChecker, place: CollisionChecker
-                 ) -> tuple[GraspTargets, list[IKResult]]:
-    """IK of pregrasp, grasp, lift, place and preplace, each from the previous one, each checked.
+def holdable(robot: Robot, grasps: Sequence[GraspCandidate], safety_factor: float,
+             T_world_object: pin.SE3) -> list[GraspCandidate]:
+    """The grasps whose pads hold the object's believed weight with ``safety_factor``, in their order: the
+    force along the pads and its torque about the closing axis (:class:`~pickplace.grasping.grip.GripCapacity`).
 
-    The lift and the preplace are raised in ``LIFT_STEP_M`` steps (up to ``MAX_RAISE_M``) while the carried
-    object is within the margin of something there (an object beside a wall is lifted above it).
+    Raises:
+        CannotHold: none does; the grasp that comes closest is named with its forces (or torques).
     """
-    def solve(name: str, target: pin.SE3, q0: np.ndarray, checker: CollisionChecker) -> IKResult:
-        try:
-            return solve_ik(robot, target, q0, name, ik_config, checker.is_valid)
-        except UnreachableTarget as exc:
-            raise _with_collisions(exc, checker, robot, target, q0, ik_config) from None
+    obj = robot.scene.object
+    capacities = [grip_capacity(robot, obj, g.T_object_tcp.inverse(), g.width_m, safety_factor,
+                                up_tcp=(T_world_object * g.T_object_tcp).rotation[2]) for g in grasps]
+    kept = [g for g, c in zip(grasps, capacities, strict=True) if c.holds_at_rest]
+    if not kept:
+        def shortfall(c: GripCapacity) -> float:
+            return max(c.needed_at_rest_n / c.friction_force_n if c.friction_force_n > 0 else math.inf,
+                       c.needed_torque_at_rest_nm / c.torque_capacity_nm if c.torque_capacity_nm > 0 else math.inf)
+        min(capacities, key=shortfall).require_holdable(obj.name)
+    return kept
 
-    def solve_raised(name: str, base: pin.SE3, q0: np.ndarray) -> tuple[float, IKResult]:
-        heights = np.arange(CLEARANCE_M, MAX_RAISE_M + 1e-9, LIFT_STEP_M)
+
+def _raise_steps(first_m: float) -> np.ndarray:
+    """Heights tried for a rise that must end clear of everything: ``first_m`` then up in ``LIFT_STEP_M`` steps
+    to ``MAX_RAISE_M`` (m)."""
+    return np.concatenate([[first_m], np.arange(first_m + LIFT_STEP_M, MAX_RAISE_M + 1e-9, LIFT_STEP_M)])
+
+
+class _Chain:
+    """Solves the targets of one grasp in the order the arm visits them, each from the one before.
+
+    ``pregrasp`` is solved from ``home`` (restarts allowed: a planned path leads there). The moves that the
+    Cartesian controller makes along a straight line (the approach to the grasp, the lift, the set-down from
+    the preplace, the retreat) are followed waypoint by waypoint from where they start
+    (:func:`~pickplace.robot.ik.solve_line`), so that a collision half way, or a change of IK branch, fails
+    the grasp here rather than the arm in the middle of the move. ``preplace`` is solved from ``lift``
+    (a planned path leads there too).
+
+    The collision policy of each: the open hand around the resting object on the approach; the object
+    carried, allowed to touch the table, on the lift and the set-down; the open hand leaving the object
+    at the goal on the retreat. The lift, the preplace and the retreat end where a planned path starts or
+    ends, so they must clear the table, floor and obstacles by ``clearance_m``; the lift and the retreat rise
+    (and the preplace is raised) in ``LIFT_STEP_M`` steps until they do (an object beside a wall is lifted
+    above it).
+    """
+
+    def __init__(self, robot: Robot, ik_config: IKConfig | None, world: mujoco.MjData | None, clearance_m: float,
+                 retreat_m: float) -> None:
+        self.robot, self.ik, self.world, self.clearance_m, self.retreat_m = robot, ik_config, world, clearance_m, \
+            retreat_m
+        self.above = self._checker(CollisionPolicy(margin_m=clearance_m))
+        self.approach = self._checker(CollisionPolicy(margin_m=LINE_CUSHION_M, table_margin_m=0.0))
+
+    def _checker(self, policy: CollisionPolicy, T_tcp_object: pin.SE3 | None = None,
+                 world: mujoco.MjData | None = None) -> CollisionChecker:
+        checker = CollisionChecker(self.robot, policy, T_tcp_object=T_tcp_object)
+        world = world if world is not None else self.world
+        if world is not None:
+            checker.set_world(world)
+        return checker
+
+    def solve(self, targets: GraspTargets, held_m: float) -> tuple[GraspTargets, list[IKResult]]:
+        """The IK results ``[pregrasp, grasp, lift, preplace, place, retreat]`` and the targets as raised."""
+        robot, T_tcp_object = self.robot, targets.T_tcp_object
+
+        def carrying(margin_m: float, table_margin_m: float | None = None, on_table: bool = False
+                     ) -> CollisionChecker:
+            policy = CollisionPolicy(margin_m=margin_m, object_held=True, allow_object_table=on_table,
+                                     finger_m=held_m, table_margin_m=table_margin_m)
+            return self._checker(policy, T_tcp_object)
+
+        pre = self._point("pregrasp", targets.pregrasp, robot.home_q, self.above)
+        grasp = self._line("grasp", targets.grasp, pre.q, self.approach)
+        lifting = carrying(LINE_CUSHION_M, 0.0, on_table=True)
+        carry = carrying(self.clearance_m)
+        lift_m, lift = self._rise("lift", targets.grasp, grasp, CLEARANCE_M, lifting, carry, held_m)
         first: UnreachableTarget | None = None
-        for h in heights:
+        for h in _raise_steps(CLEARANCE_M):  # the preplace: the lowest that is clear
             try:
-                return float(h), solve(name, raised(base, float(h)), q0, carry)
+                preplace = self._point("preplace", raised(targets.place, float(h)), lift.q, carry, held_m)
             except UnreachableTarget as exc:
                 if "collision" not in exc.reason:  # out of reach: higher is no better
                     raise
                 first = first or exc
-        assert first is not None
-        raise UnreachableTarget(first.target, f"{first.reason} (also raised up to {MAX_RAISE_M:.2f} m)",
-                                first.position_error_m, first.orientation_error_rad)
+                continue
+            preplace_m = float(h)
+            break
+        else:
+            assert first is not None
+            raise _raised_error(first)
+        placed = self._line("place", targets.place, preplace.q, lifting, held_m)
+        at_goal = _world_with_object(robot, self.world, pin.SE3(targets.R_world_object_goal,
+                                                                robot.scene.goal_resting_m(targets.R_world_object_goal)))
+        leaving = self._checker(CollisionPolicy(margin_m=LINE_CUSHION_M, table_margin_m=0.0,
+                                                allow_gripper_object=True), world=at_goal)
+        clear = self._checker(CollisionPolicy(margin_m=self.clearance_m, allow_gripper_object=True), world=at_goal)
+        back = backed_off(targets.place, self.retreat_m)
+        backed = self._line("retreat", back, placed.q, leaving)
+        rise_m, retreat = self._rise("retreat", back, backed, 0.0, leaving, clear)
+        return (targets.raised_by(lift_m, preplace_m, self.retreat_m, rise_m),
+                [pre, grasp, lift, preplace, placed, retreat])
 
-    pre = solve("pregrasp", targets.pregrasp, robot.home_q, above)
-    grasp = solve("grasp", targets.grasp, pre.q, free)
-    lift_target = raised(targets.grasp, CLEARANCE_M)
-    same = (np.linalg.norm(lift_target.translation - targets.pregrasp.translation) < _SAME_POSE_M
-            and rotation_distance(lift_target.rotation, targets.pregrasp.rotation) < 1e-9)
-    lift_m, lift = (CLEARANCE_M, pre) if same else solve_raised("lift", targets.grasp, grasp.q)
-    placed_at = targets.place
-    preplace_m, preplace = solve_raised("preplace", placed_at, lift.q)
-    placed = solve("place", placed_at, preplace.q, place)
-    return targets.raised_by(lift_m, preplace_m), [pre, grasp, lift, preplace, placed]
+    def _point(self, name: str, target: pin.SE3, q0: np.ndarray, checker: CollisionChecker,
+               finger_m: float = 0.0) -> IKResult:
+        """A target reached by a planned path: IK with restarts, checked."""
+        try:
+            return solve_ik(self.robot, target, q0, name, self.ik, checker.is_valid, finger_m)
+        except UnreachableTarget as exc:
+            if "collision" not in exc.reason:
+                raise
+            q = solve_ik(self.robot, target, q0, name, self.ik, None, finger_m).q
+            raise _naming(exc, checker, q) from None
+
+    def _line(self, name: str, target: pin.SE3, q0: np.ndarray, checker: CollisionChecker,
+              finger_m: float = 0.0) -> IKResult:
+        """A target reached by a straight move from ``q0``: followed waypoint by waypoint, each checked."""
+        try:
+            return solve_line(self.robot, target, q0, name, self.ik, checker.is_valid, finger_m)
+        except UnreachableTarget as exc:
+            if exc.q is None or "collision" not in exc.reason:
+                raise
+            raise _naming(exc, checker, exc.q) from None
+
+    def _rise(self, name: str, base: pin.SE3, start: IKResult, first_m: float, line: CollisionChecker,
+              end: CollisionChecker, finger_m: float = 0.0) -> tuple[float, IKResult]:
+        """Rise straight up from ``base`` (reached at ``start``) to ``first_m`` and on, in ``LIFT_STEP_M``
+        steps, until the configuration passes ``end``; the whole rise is one straight move checked with ``line``.
+
+        Returns:
+            The height risen (m) and the IK result there (``start`` itself if it passes at height 0).
+        """
+        result = start
+        for h in _raise_steps(first_m):
+            if h > 0.0:
+                result = self._line(name, raised(base, float(h)), result.q, line, finger_m)
+            if end.is_valid(result.q):
+                return float(h), result
+        raise _raised_error(_naming(UnreachableTarget(name, "in collision at the end of the rise"), end, result.q))
 
 
-def _with_collisions(exc: UnreachableTarget, checker: CollisionChecker, robot: Robot, target, q0,
-                     ik_config: IKConfig | None) -> UnreachableTarget:
-    """Add the colliding geoms to an IK failure caused by collisions."""
-    if "collision" not in exc.reason:
-        return exc
-    q = solve_ik(robot, target, q0, exc.target, ik_config).q
+def _raised_error(exc: UnreachableTarget) -> UnreachableTarget:
+    return UnreachableTarget(exc.target, f"{exc.reason} (also raised up to {MAX_RAISE_M:.2f} m)",
+                             exc.position_error_m, exc.orientation_error_rad, exc.q)
+
+
+def _naming(exc: UnreachableTarget, checker: CollisionChecker, q: np.ndarray) -> UnreachableTarget:
+    """The failure with the colliding geoms at ``q`` named."""
     pairs = ", ".join(f"{a} <-> {b}" for a, b in checker.colliding_pairs(q))
     return UnreachableTarget(exc.target, f"{exc.reason}; colliding: {pairs}", exc.position_error_m,
-                             exc.orientation_error_rad)
+                             exc.orientation_error_rad, q)
+
+
+def _world_with_object(robot: Robot, world: mujoco.MjData | None, T_world_object: pin.SE3) -> mujoco.MjData:
+    """A copy of ``world`` (default: the scene's initial state) with the object at ``T_world_object``."""
+    d = mujoco.MjData(robot.mj)
+    if world is None:
+        mujoco.mj_resetDataKeyframe(robot.mj, d, 0)
+    else:
+        d.qpos[:], d.mocap_pos[:], d.mocap_quat[:] = world.qpos, world.mocap_pos, world.mocap_quat
+    a = robot.handles.object_qpos
+    d.qpos[a:a + 3] = T_world_object.translation
+    quat = np.empty(4)
+    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(T_world_object.rotation).ravel())
+    d.qpos[a + 3:a + 7] = quat
+    return d

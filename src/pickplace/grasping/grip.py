@@ -14,8 +14,14 @@ episode rejects it before the arm moves (:class:`~pickplace.errors.CannotHold`).
 set-down are limited to the vertical acceleration that holds, and a carrying trajectory is slowed down
 uniformly until the centre of mass's acceleration holds at every instant.
 
-Not modelled: the torque about the closing axis (the pads' torsional and patch friction against an off-centre
-object's weight and inertia) and dynamic effects of the squeeze itself.
+An object whose centre of mass is off the closing axis also turns in the grip: its weight has a torque
+``m g l`` about the axis (``l`` the centre of mass's horizontal distance from it) that the pads resist by
+their torsional friction, ``2 mu_t F`` (``mu_t`` a length: MuJoCo's torsional friction, the larger of the
+pad's and the object's). With the safety factor, ``m g l s > 2 mu_t F`` is rejected like a weight the pads
+cannot carry, and the acceleration budget is the smaller of the two. This counts only the torsional term: the
+friction of a flat pad's contact patch adds to it, so the test errs on the side of rejecting.
+
+Not modelled: dynamic effects of the squeeze itself.
 """
 
 from __future__ import annotations
@@ -52,6 +58,8 @@ class GripCapacity:
         pad_force_n: Normal force of each pad (N).
         safety_factor: Factor the needed force is multiplied by before it is compared (1 = no margin).
         com_tcp_m: The object's centre of mass in the tcp frame (3,) (m).
+        lever_m: Horizontal distance of the centre of mass from the closing axis (m): the weight's lever.
+        torsion_m: Torsional friction of the pads on the object (m: torque over normal force).
     """
 
     mass_kg: float
@@ -59,6 +67,8 @@ class GripCapacity:
     pad_force_n: float
     safety_factor: float
     com_tcp_m: tuple[float, float, float]
+    lever_m: float = 0.0
+    torsion_m: float = 0.0
 
     @property
     def friction_force_n(self) -> float:
@@ -71,9 +81,30 @@ class GripCapacity:
         return self.mass_kg * G * self.safety_factor
 
     @property
+    def torque_capacity_nm(self) -> float:
+        """The most the pads resist about the closing axis, ``2 mu_t F`` (N m)."""
+        return 2.0 * self.torsion_m * self.pad_force_n
+
+    @property
+    def needed_torque_at_rest_nm(self) -> float:
+        """What holding the object still needs about the closing axis, ``m g l s`` (N m)."""
+        return self.mass_kg * G * self.lever_m * self.safety_factor
+
+    @property
+    def holds_at_rest(self) -> bool:
+        """Whether the pads hold the object still: its weight and the weight's torque about the axis."""
+        return (self.needed_at_rest_n <= self.friction_force_n
+                and self.needed_torque_at_rest_nm <= self.torque_capacity_nm)
+
+    @property
     def acceleration_budget_m_s2(self) -> float:
-        """The largest ``|a - g|`` of the centre of mass that holds, ``2 mu F / (m s)`` (m/s^2)."""
-        return self.friction_force_n / (self.mass_kg * self.safety_factor)
+        """The largest ``|a - g|`` of the centre of mass that holds (m/s^2): ``2 mu F / (m s)``, and with the
+        centre of mass off the axis at most ``2 mu_t F / (m l s)`` (the torque of its inertia, taken as if
+        it all acted on the lever)."""
+        budget = self.friction_force_n / (self.mass_kg * self.safety_factor)
+        if self.lever_m > 0.0:
+            budget = min(budget, self.torque_capacity_nm / (self.mass_kg * self.lever_m * self.safety_factor))
+        return budget
 
     @property
     def max_vertical_accel_m_s2(self) -> float:
@@ -81,28 +112,39 @@ class GripCapacity:
         return self.acceleration_budget_m_s2 - G
 
     def require_holdable(self, name: str) -> None:
-        """Raise :class:`CannotHold` if the object's weight alone needs more friction than the pads have."""
+        """Raise :class:`CannotHold` if the object's weight alone needs more friction than the pads have, or
+        turns it about the closing axis harder than their torsional friction resists."""
         if self.needed_at_rest_n > self.friction_force_n:
             raise CannotHold(name, self.needed_at_rest_n, self.friction_force_n, self.mass_kg, self.friction,
                              self.pad_force_n, self.safety_factor)
+        if self.needed_torque_at_rest_nm > self.torque_capacity_nm:
+            raise CannotHold.turning(name, self.needed_torque_at_rest_nm, self.torque_capacity_nm, self.mass_kg,
+                                     self.lever_m, self.torsion_m, self.pad_force_n, self.safety_factor)
 
 
 def grip_capacity(robot: Robot, obj: ObjectConfig, T_tcp_object: pin.SE3, width_m: float,
-                  safety_factor: float, mass_kg: float | None = None) -> GripCapacity:
+                  safety_factor: float, mass_kg: float | None = None, up_tcp: np.ndarray | None = None
+                  ) -> GripCapacity:
     """The capacity of a grip on ``obj`` held at ``T_tcp_object`` across ``width_m`` (m).
 
     Args:
-        robot: The models (the gripper's actuator).
+        robot: The models (the gripper's actuator and pads).
         obj: The object as the robot believes it.
         T_tcp_object: The object's pose in the tcp frame.
         width_m: Its width between the pads (m).
         safety_factor: Margin on the needed force (>= 1).
         mass_kg: A mass to use instead of the configured one (e.g. after weighing it) (kg).
+        up_tcp: The world's up direction in the tcp frame (3,); default: the object's z axis (it rests on its
+            resting face).
     """
     com = T_tcp_object.act(mass_properties(obj).com_m)
+    up = T_tcp_object.rotation[:, 2] if up_tcp is None else np.asarray(up_tcp, dtype=float)
+    lever = float(abs(com[2] * up[0] - com[0] * up[2]))  # |(com x up) . y|, y the closing axis
+    pad_torsion = float(np.max(robot.mj.geom_friction[robot.handles.pad_geoms, 1]))
     return GripCapacity(obj.mass_kg if mass_kg is None else mass_kg, obj.friction,
                         squeeze_per_pad_n(robot, width_m), safety_factor,
-                        (float(com[0]), float(com[1]), float(com[2])))
+                        (float(com[0]), float(com[1]), float(com[2])), lever,
+                        max(pad_torsion, obj.torsional_friction_m))
 
 
 def com_accelerations(robot: Robot, traj: Trajectory, com_tcp_m: np.ndarray, finger_m: float,

@@ -126,6 +126,9 @@ class GraspTargets:
         T_object_tcp: The grasp in the object's frame.
         width_m: Width of the object between the pads (m).
         R_world_object_goal: The object's orientation at the goal (3, 3).
+        retreat_back_m: After the release, how far the tcp backs off from the place along its approach (m).
+        retreat_rise_m: Then how far it rises straight up before the arm plans its way home (m): 0 unless the
+            hand would still be within the planner's margin of something there.
     """
 
     pregrasp: pin.SE3
@@ -136,11 +139,13 @@ class GraspTargets:
     T_object_tcp: pin.SE3
     width_m: float
     R_world_object_goal: np.ndarray
+    retreat_back_m: float = 0.0
+    retreat_rise_m: float = 0.0
 
     def named(self) -> list[tuple[str, pin.SE3]]:
         """``[(name, pose)]`` in the order they are visited."""
         return [("pregrasp", self.pregrasp), ("grasp", self.grasp), ("lift", self.lift),
-                ("preplace", self.preplace), ("place", self.place)]
+                ("preplace", self.preplace), ("place", self.place), ("retreat", self.retreat)]
 
     @property
     def lift_height_m(self) -> float:
@@ -152,9 +157,17 @@ class GraspTargets:
         """Height of the preplace above the place (m)."""
         return float(self.preplace.translation[2] - self.place.translation[2])
 
-    def raised_by(self, lift_m: float, preplace_m: float) -> GraspTargets:
-        """A copy whose lift and preplace are ``lift_m`` above the grasp and ``preplace_m`` above the place (m)."""
-        return dataclasses.replace(self, lift=raised(self.grasp, lift_m), preplace=raised(self.place, preplace_m))
+    @property
+    def retreat(self) -> pin.SE3:
+        """The tcp's pose at the end of the retreat from the place."""
+        return raised(backed_off(self.place, self.retreat_back_m), self.retreat_rise_m)
+
+    def raised_by(self, lift_m: float, preplace_m: float, retreat_back_m: float = 0.0,
+                  retreat_rise_m: float = 0.0) -> GraspTargets:
+        """A copy whose lift and preplace are ``lift_m`` above the grasp and ``preplace_m`` above the place, and
+        whose retreat backs off ``retreat_back_m`` and rises ``retreat_rise_m`` (m)."""
+        return dataclasses.replace(self, lift=raised(self.grasp, lift_m), preplace=raised(self.place, preplace_m),
+                                   retreat_back_m=retreat_back_m, retreat_rise_m=retreat_rise_m)
 
     @property
     def T_tcp_object(self) -> pin.SE3:

@@ -46,6 +46,9 @@ class CollisionPolicy:
         allow_object_table: Contacts between the object and the table are allowed (the object resting, or being
             set down).
         finger_m: Finger opening used for the check (m of slide travel; 0 = fully open).
+        table_margin_m: Margin to the table top alone (m); None: ``margin_m``. Moves that work at the table
+            (the fingers reach down beside an object resting on it) keep a cushion from walls with
+            ``margin_m`` and none from the table.
     """
 
     margin_m: float = 0.01
@@ -53,9 +56,12 @@ class CollisionPolicy:
     allow_gripper_object: bool = False
     allow_object_table: bool = True
     finger_m: float = 0.0
+    table_margin_m: float | None = None
 
     def __post_init__(self) -> None:
         check_range("collision.margin_m", self.margin_m, 0.0, 0.1, unit="m")
+        if self.table_margin_m is not None:
+            check_range("collision.table_margin_m", self.table_margin_m, 0.0, 0.1, unit="m")
         check_range("collision.finger_m", self.finger_m, 0.0, 0.040, unit="m")
 
 
@@ -154,7 +160,8 @@ class CollisionChecker:
         # the robot clear of them, while robot self-collision is checked at actual contact (adjacent housings
         # of the UR5e sit closer than any useful margin).
         m.geom_margin[:] = 0.0
-        m.geom_margin[(cls == TABLE) | (cls == ENV)] = policy.margin_m
+        m.geom_margin[cls == ENV] = policy.margin_m
+        m.geom_margin[cls == TABLE] = policy.margin_m if policy.table_margin_m is None else policy.table_margin_m
         if policy.object_held:
             m.geom_margin[cls == OBJ] = policy.margin_m
         # The broad phase works on bodies: it filters body pairs by the OR of their geoms' bits and pads each

@@ -195,3 +195,81 @@ def solve_ik(
         best.position_error_m,
         best.orientation_error_rad,
     )
+
+
+#: Spacing of the waypoints at which :func:`solve_line` solves and checks a straight tcp move (m).
+LINE_STEP_M = 0.01
+#: Largest joint change between two waypoints of a straight move (rad): more is a jump to another IK branch
+#: (or a pass near a singularity) that the Cartesian controller, which moves continuously, would not make.
+LINE_MAX_JUMP_RAD = 0.2
+
+
+def solve_line(
+    robot: Robot,
+    T_world_target: pin.SE3,
+    q_start: np.ndarray,
+    name: str = "target",
+    config: IKConfig | None = None,
+    is_valid: Callable[[np.ndarray], bool] | None = None,
+    finger_m: float = 0.0,
+    step_m: float = LINE_STEP_M,
+) -> IKResult:
+    """Follow a straight tcp move from where ``q_start`` puts it to ``T_world_target``, the way the arm makes it.
+
+    The Cartesian controller moves the tcp along the segment continuously from ``q_start``, so the joints it
+    passes through are those that DLS finds from one waypoint to the next (every ``step_m`` along the segment,
+    orientation interpolated on SO(3)), each from the previous solution with no restarts: the arm stays on its
+    branch. Every waypoint must converge, stay within the joint limits, move no joint more than
+    ``LINE_MAX_JUMP_RAD`` from the previous one, and pass ``is_valid``. An IK solve of the end alone (with
+    restarts) can land on another branch and hide a collision half way.
+
+    Args:
+        robot: The models.
+        T_world_target: The tcp's pose at the end of the move.
+        q_start: The arm's configuration at its start (6,) (rad).
+        name: The target's name, for the result and errors.
+        config: Solver settings (its restarts are not used).
+        is_valid: Collision check of each waypoint's configuration.
+        finger_m: Finger opening for the kinematics (m).
+        step_m: Waypoint spacing (m).
+
+    Returns:
+        The :class:`IKResult` at the end of the move (``iterations`` summed over the waypoints).
+
+    Raises:
+        UnreachableTarget: a waypoint fails; the message says how far along the move (m) and why.
+    """
+    config = config or IKConfig()
+    data = robot.pin.createData()
+    q = np.asarray(q_start, dtype=float).copy()
+    T0 = frame_pose(robot.pin, data, robot.pin_q(q, finger_m), robot.pin_tcp_frame)
+    length = float(np.linalg.norm(T_world_target.translation - T0.translation))
+    turn = pin.log3(T0.rotation.T @ T_world_target.rotation)
+    n = max(1, int(np.ceil(length / step_m - 0.05)))  # steps up to 5% longer than step_m (IK residuals)
+    total_it = 0
+    e = np.zeros(6)
+    for k in range(1, n + 1):
+        s = k / n
+        T = pin.SE3(T0.rotation @ pin.exp3(s * turn), (1 - s) * T0.translation + s * T_world_target.translation)
+        q_new, e, it = dls_iterate(robot, data, T, q, config, finger_m)
+        total_it += it
+        q_new = _wrap_near(q_new, q, robot.arm_lower, robot.arm_upper)
+        why = None
+        if np.linalg.norm(e) > config.tolerance:
+            why = IKStatus.NOT_CONVERGED.value
+        elif np.any(q_new < robot.arm_lower) or np.any(q_new > robot.arm_upper):
+            why = IKStatus.JOINT_LIMITS.value
+        elif float(np.max(np.abs(q_new - q))) > LINE_MAX_JUMP_RAD:
+            why = (f"a joint jumps {float(np.max(np.abs(q_new - q))):.2f} rad in one {length / n * 1e3:.0f} mm step "
+                   f"(limit {LINE_MAX_JUMP_RAD} rad: near a singularity)")
+        elif is_valid is not None and not is_valid(q_new):
+            why = IKStatus.COLLISION.value
+        if why is not None:
+            p = T.translation
+            raise UnreachableTarget(
+                name, f"the straight move to it is {why} {s * length:.3f} of {length:.3f} m along, with the tcp at "
+                      f"({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m", float(np.linalg.norm(e[:3])),
+                float(np.linalg.norm(e[3:])), q=q_new)
+        q = q_new
+    return IKResult(name, q, float(np.linalg.norm(e[:3])), float(np.linalg.norm(e[3:])), total_it, 1,
+                    IKStatus.CONVERGED)

@@ -35,7 +35,15 @@ from pickplace.errors import ConfigError, GraspFailed, PickPlaceError, Unreachab
 from pickplace.grasping.closure import analyze_grasp
 from pickplace.grasping.configurations import GraspConfigurations, solve_grasp_configurations
 from pickplace.grasping.grip import GripCapacity, com_accelerations, grip_capacity, slowdown_for_grip
-from pickplace.grasping.targets import CLEARANCE_M, backed_off, object_yaw, place_targets, yaw_error
+from pickplace.grasping.targets import (
+    CLEARANCE_M,
+    LIFT_STEP_M,
+    MAX_RAISE_M,
+    backed_off,
+    object_yaw,
+    place_targets,
+    yaw_error,
+)
 from pickplace.motion import control
 from pickplace.motion.collision import CollisionChecker, CollisionPolicy
 from pickplace.motion.control import ControlConfig, Payload
@@ -489,7 +497,7 @@ class PickPlaceMachine:
         t0 = time.perf_counter()
         mujoco.mj_forward(self.robot.mj, self.d)
         obj = self._object_pose()
-        configs = solve_grasp_configurations(self.robot, self.ik, obj, self.d, self.cfg.planning_margin_m)
+        configs = self._solve_grasps(obj)
         self.robot.scene.check_goal_on_table()
         self.monitor.watch_object_at = obj.translation.copy()
         self._adopt(configs)
@@ -497,10 +505,36 @@ class PickPlaceMachine:
         self.out.wall_plan_time_s += time.perf_counter() - t0
         return Phase.PLAN_APPROACH
 
+    def _solve_grasps(self, T_world_object: pin.SE3) -> GraspConfigurations:
+        """The first grasp of the object where it rests whose targets all solve and whose pads hold it."""
+        return solve_grasp_configurations(self.robot, self.ik, T_world_object, self.d, self.cfg.planning_margin_m,
+                                          retreat_m=self.cfg.retract_height_m,
+                                          safety_factor=self.cfg.grip_safety_factor)
+
+    def _rise_until_clear(self, phase: Phase, checker_at: Callable[[float], CollisionChecker]) -> None:
+        """Rise straight up in ``LIFT_STEP_M`` steps (up to ``MAX_RAISE_M``) until the arm clears everything by
+        the planner's margin, as the next planned path needs (the object settled in the grip a little
+        differently from the plan, the place ended a little off).
+
+        Raises:
+            PhaseFailed: still not clear at the highest step; the geoms are named.
+        """
+        checker = checker_at(self.cfg.planning_margin_m)
+        risen = 0.0
+        while not checker.is_valid(self.q):
+            if risen >= MAX_RAISE_M - 1e-9:
+                pairs = ", ".join(f"{a} <-> {b}" for a, b in checker.colliding_pairs(self.q))
+                raise PhaseFailed(phase, f"still within {self.cfg.planning_margin_m * 1e3:.0f} mm of something "
+                                         f"after rising {risen:.2f} m: {pairs}")
+            log.info("%s: within the planner's margin of something; rising %.2f m more", phase.value, LIFT_STEP_M)
+            self._vertical(phase, float(self._tcp_pose().translation[2]) + LIFT_STEP_M)
+            risen += LIFT_STEP_M
+
     def _adopt(self, configs: GraspConfigurations) -> None:
         """Take these targets, after checking that their grip can hold the object (:class:`CannotHold` if not)."""
         targets, obj = configs.targets, self.robot.scene.object
-        capacity = grip_capacity(self.robot, obj, targets.T_tcp_object, targets.width_m, self.cfg.grip_safety_factor)
+        capacity = grip_capacity(self.robot, obj, targets.T_tcp_object, targets.width_m, self.cfg.grip_safety_factor,
+                                 up_tcp=targets.grasp.rotation[2])
         capacity.require_holdable(obj.name)
         self.configs, self._capacity = configs, capacity
         grasp = configs.chosen
@@ -627,6 +661,8 @@ class PickPlaceMachine:
         if abs(rise - lifted) > self.cfg.slip_tolerance_m:
             raise GraspFailed(f"the {self.robot.scene.object.name} rose {rise * 1e3:.1f} mm while the tcp rose "
                               f"{lifted * 1e3:.1f} mm")
+        self._T_tcp_object = self._tcp_pose().actInv(self._object_pose())  # as it sits in the hand
+        self._rise_until_clear(Phase.LIFT, lambda margin: self._carrying(margin, False))
         return Phase.PLAN_TRANSPORT
 
     def _carrying(self, margin_m: float, allow_object_table: bool) -> CollisionChecker:
@@ -738,7 +774,13 @@ class PickPlaceMachine:
                                                  scene.object.yaw_period_rad)
 
     def _retract(self) -> Phase:
+        """Back off from the object along the approach, rise if the plan said so (or if the hand is still
+        within the planner's margin of something), and go home."""
+        assert self.configs is not None
         self._linear(Phase.RETRACT, backed_off(self._tcp_pose(), self.cfg.retract_height_m).translation)
+        if self.configs.targets.retreat_rise_m > 0.0:
+            self._vertical(Phase.RETRACT, float(self._tcp_pose().translation[2]) + self.configs.targets.retreat_rise_m)
+        self._rise_until_clear(Phase.RETRACT, self._free)
         self._plan_segment("return", self._free, self.robot.home_q)
         self._execute(Phase.RETRACT)
         return Phase.DONE
@@ -862,8 +904,13 @@ class PickPlaceMachine:
             self._vertical(Phase.RECOVER, z_safe)
         object_v = slice(robot.handles.object_dof, robot.handles.object_dof + 6)
         name = scene.object.name
-        if not self._hold_until(None, lambda: float(np.linalg.norm(d.qvel[object_v])) <= 0.01,
-                                cfg.object_settle_timeout_s):
+        self.monitor.object_falling = True  # the arm waits; whatever the object lands on, it came to it
+        try:
+            rested = self._hold_until(None, lambda: float(np.linalg.norm(d.qvel[object_v])) <= 0.01,
+                                      cfg.object_settle_timeout_s)
+        finally:
+            self.monitor.object_falling = False
+        if not rested:
             raise PhaseFailed(Phase.RECOVER, f"the {name} did not come to rest within "
                                              f"{cfg.object_settle_timeout_s:.1f} s")
         self.monitor.allow_hand_object = False
@@ -879,7 +926,7 @@ class PickPlaceMachine:
                                              "(it is stuck on something)")
         t0 = time.perf_counter()
         try:
-            self._adopt(solve_grasp_configurations(robot, self.ik, obj, d, cfg.planning_margin_m))
+            self._adopt(self._solve_grasps(obj))
         except UnreachableTarget as exc:
             raise PhaseFailed(Phase.RECOVER, f"the {name} now rests at {where}, out of reach: {exc}") from exc
         finally:

@@ -76,6 +76,7 @@ class StepMonitor:
         cls[h.object_geoms] = _OBJECT
         self.cls = cls
         self.allow_hand_object = False  # gripper/pads touching the object
+        self.object_falling = False  # a dropped object on its way down may land on the arm too
         self.allow_object_table = True
         self.holding = False  # slip is checked
         self.tolerate_contacts = False  # backing off a collision: contacts are expected until clear
@@ -100,11 +101,14 @@ class StepMonitor:
 
         The robot touching anything but the object (when allowed) is a fault. The object touching the table,
         a wall or the floor is a fault only while the robot holds it (it carried the object into them); an
-        object that is not held (resting, or dropped) may touch whatever it falls on.
+        object that is not held (resting, or dropped) may touch whatever it falls on, including the arm while
+        it falls (``object_falling``: the arm stands still, the object came to it).
         """
         lo, hi = min(a, b), max(a, b)
         if hi == _OBJECT and lo in (_GRIPPER, _PAD):
-            return self.allow_hand_object
+            return self.allow_hand_object or self.object_falling
+        if (lo, hi) == (_ARM, _OBJECT):
+            return self.object_falling
         if (lo, hi) == (_OBJECT, _TABLE):
             return self.allow_object_table or not self.holding
         if (lo, hi) == (_OBJECT, _ENV):
