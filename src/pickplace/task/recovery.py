@@ -1,0 +1,120 @@
+"""What a failed phase can do about it: the recovery table, and the budget of retries.
+
+A failure is recovered only when its cause may be transient and something can be done about it:
+
+====================================  ===============================  ============================================
+failure                               in                               recovery
+====================================  ===============================  ============================================
+collision predicted ahead             a running trajectory             stop, plan again from where the arm stands
+the arm touched the world             a running trajectory             back off along the executed path, replan
+slip, lost grip                       CLOSE … DESCEND_PLACE            stop, open, back off, re-observe, regrasp
+the held object hit the world         CLOSE … DESCEND_PLACE            the same (the robot itself touched nothing)
+the object moved before the grasp     EXEC_APPROACH, DESCEND           wait for it to rest, re-observe, approach
+the grasp missed, or hit the object   DESCEND                          back off, re-observe, approach again
+====================================  ===============================  ============================================
+
+Everything else fails the episode with its phase and reason. A failure identical (numbers aside) to the one
+the last recovery answered is not retried: recovering changed nothing, so the cause is not transient.
+"""
+
+from __future__ import annotations
+
+import enum
+import re
+from dataclasses import dataclass
+
+from pickplace.errors import GraspFailed, PickPlaceError
+from pickplace.task.monitor import ObjectMoved, UnexpectedContact
+from pickplace.task.phases import CollisionPredicted, Phase, PhaseFailed
+
+#: Numbers in a failure message (ignored when comparing two failures).
+_NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
+#: Phases whose grasp failures are recovered by letting go and grasping again.
+GRASP_PHASES = (Phase.CLOSE, Phase.LIFT, Phase.PLAN_TRANSPORT, Phase.EXEC_TRANSPORT, Phase.DESCEND_PLACE)
+#: Where to go back to when a collision is predicted or met while a trajectory runs.
+REPLAN = {Phase.EXEC_APPROACH: Phase.PLAN_APPROACH, Phase.EXEC_TRANSPORT: Phase.PLAN_TRANSPORT,
+          Phase.RETRACT: Phase.RETRACT}
+
+_REGRASP = "stop, open, back off, re-observe the object and grasp again"
+
+
+class FirstMove(enum.Enum):
+    """What the arm does at once, before the recovery's next phase."""
+
+    NOTHING = "nothing"
+    STOP = "stop"  # come to rest at the deceleration limits
+    BACK_OFF = "back off"  # retrace the last 0.3 s of the running trajectory
+
+
+@dataclass(frozen=True)
+class Recovery:
+    """How to recover from one failure.
+
+    Attributes:
+        action: What is done, in words (for the result's ``recoveries``).
+        next_phase: The phase to continue with.
+        first: What the arm does at once.
+    """
+
+    action: str
+    next_phase: Phase
+    first: FirstMove = FirstMove.NOTHING
+
+
+def recovery_for(phase: Phase, exc: PickPlaceError, touches_object: bool) -> Recovery | None:
+    """The recovery from ``exc`` raised in ``phase``, or None if it is not recoverable.
+
+    Args:
+        phase: The phase that failed.
+        exc: Its failure.
+        touches_object: For an :class:`UnexpectedContact`: whether every contact involves the object.
+    """
+    contact = isinstance(exc, UnexpectedContact)
+    if isinstance(exc, CollisionPredicted) and phase in REPLAN:
+        return Recovery("stop and replan", REPLAN[phase], FirstMove.STOP)
+    if contact and phase in REPLAN and not touches_object:
+        return Recovery("back off along the executed path and replan", REPLAN[phase], FirstMove.BACK_OFF)
+    if isinstance(exc, GraspFailed) and phase in GRASP_PHASES:
+        return Recovery(_REGRASP, Phase.RECOVER)
+    if contact and phase in GRASP_PHASES and touches_object:
+        return Recovery(_REGRASP, Phase.RECOVER)  # the held object hit the world: the robot touched nothing
+    if isinstance(exc, ObjectMoved) and phase in (Phase.EXEC_APPROACH, Phase.DESCEND):
+        return Recovery("stop, wait for the object to rest, observe it again and approach again", Phase.RECOVER)
+    if phase is Phase.DESCEND and (isinstance(exc, PhaseFailed) or (contact and touches_object)):
+        return Recovery("back off, re-observe the object and approach again", Phase.RECOVER)
+    return None
+
+
+class RetryBudget:
+    """How many recoveries are left, and whether a failure repeats the one the last recovery answered.
+
+    Args:
+        max_retries: Recoveries allowed (0: none).
+    """
+
+    def __init__(self, max_retries: int) -> None:
+        self.max_retries = max_retries
+        self.used = 0
+        self.repeated = False  # the last refusal was a repeat of the failure before it
+        self._last: tuple[Phase, str, str] | None = None
+
+    def admits(self, phase: Phase, exc: PickPlaceError) -> bool:
+        """Whether a recovery from ``exc`` in ``phase`` may be tried (retries left, not a repeat)."""
+        if self.used >= self.max_retries:
+            return False
+        if self._signature(phase, exc) == self._last:
+            self.repeated = True
+            return False
+        return True
+
+    def spend(self, phase: Phase, exc: PickPlaceError) -> None:
+        """Count a recovery from ``exc`` in ``phase``."""
+        self.used += 1
+        self._last = self._signature(phase, exc)
+
+    @staticmethod
+    def _signature(phase: Phase, exc: PickPlaceError) -> tuple[Phase, str, str]:
+        return phase, type(exc).__name__, _NUMBER.sub("#", str(exc))
+
+
+__all__ = ["GRASP_PHASES", "REPLAN", "FirstMove", "Recovery", "RetryBudget", "recovery_for"]

@@ -1,0 +1,502 @@
+"""One pick and place as a unit: the phases that pick an object and set it down at its goal, each with its own
+success check, and the recoveries between them.
+
+``IDLE → PLAN_APPROACH → EXEC_APPROACH → DESCEND → CLOSE → LIFT → PLAN_TRANSPORT → EXEC_TRANSPORT →
+DESCEND_PLACE → RELEASE → RETRACT → DONE`` (or ``FAILED``, with the phase and a specific reason).
+
+Manipulation fails quietly — a slipped grasp raises nothing by itself — so every phase checks its own
+outcome, and a monitor runs after *every* simulation step of every phase
+(:class:`~pickplace.task.monitor.StepMonitor`):
+
+* unexpected contacts: the arm or the gripper touching the table, the floor, an obstacle or itself; the
+  object carried into the table, a wall or the floor; the gripper touching the object while it approaches it.
+  The failure names the geoms.
+* slip: from the end of CLOSE until RELEASE, the object's position in the tcp frame is compared with the
+  one measured when the grip settled; moving more than ``MachineConfig.slip_tolerance_m`` fails the phase.
+
+The skill decides; its :class:`~pickplace.task.arm.Arm` moves (and keeps the clock and the record), so that a
+task with several objects can run one skill per object on the same arm. The object and its goal are the
+scene's (``robot.scene.object``, ``goal_xy_m``, ``goal_yaw_rad``): grasps and collision checks are computed
+for the scene's object. What the skill measures goes into the arm's
+:class:`~pickplace.task.phases.MachineOutcome`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import time
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+from pickplace.errors import ConfigError, GraspFailed, PickPlaceError, UnreachableTarget
+from pickplace.grasping.closure import analyze_grasp
+from pickplace.grasping.configurations import GraspConfigurations, solve_grasp_configurations
+from pickplace.grasping.grip import grip_capacity
+from pickplace.grasping.targets import CLEARANCE_M, backed_off, object_yaw, place_targets, yaw_error
+from pickplace.motion import control
+from pickplace.motion.control import Payload
+from pickplace.motion.timing import retime
+from pickplace.robot import gripper
+from pickplace.robot.ik import IKConfig, solve_ik
+from pickplace.robot.kinematics import frame_pose
+from pickplace.robot.model import object_geom_names
+from pickplace.task.arm import Arm
+from pickplace.task.monitor import UnexpectedContact
+from pickplace.task.phases import MachineOutcome, Phase, PhaseFailed
+from pickplace.task.recovery import FirstMove, RetryBudget, recovery_for
+from pickplace.world.mass import mass_properties
+
+log = logging.getLogger(__name__)
+
+
+class PickPlaceSkill:
+    """Picks the scene's object where it rests and places it at its goal, phase by phase, on an arm.
+
+    Args:
+        arm: The arm to move (its simulation, controllers, monitor and record).
+        ik: IK settings.
+
+    Attributes:
+        out: The record (the arm's).
+        configs: The targets of the grasp in use, solved to joint configurations (after IDLE).
+    """
+
+    def __init__(self, arm: Arm, ik: IKConfig) -> None:
+        self.arm = arm
+        self.robot, self.d, self.cfg, self.ik = arm.robot, arm.d, arm.cfg, ik
+        self.monitor, self.out = arm.monitor, arm.out
+        self.faults, self.injector, self.timing = arm.faults, arm.injector, arm.timing
+        self.budget = RetryBudget(arm.cfg.max_retries)
+        self.configs: GraspConfigurations | None = None
+        self._release_t = math.nan
+        self._object_names = frozenset(object_geom_names(arm.robot.scene.object))
+
+    def _object_pose(self) -> pin.SE3:
+        h = self.robot.handles
+        return pin.SE3(self.d.xmat[h.object_body].reshape(3, 3).copy(), self.d.xpos[h.object_body].copy())
+
+    def _idle(self) -> Phase:
+        """Observe the object, solve every target (before the arm moves: unreachable goals fail here)."""
+        t0 = time.perf_counter()
+        mujoco.mj_forward(self.robot.mj, self.d)
+        obj = self._object_pose()
+        configs = self._solve_grasps(obj)
+        self.robot.scene.check_goal_on_table()
+        self.monitor.watch_object_at = obj.translation.copy()
+        self._adopt(configs)
+        self.arm.note_ik(*configs.results())
+        self.out.wall_plan_time_s += time.perf_counter() - t0
+        return Phase.PLAN_APPROACH
+
+    def _solve_grasps(self, T_world_object: pin.SE3) -> GraspConfigurations:
+        """The first grasp of the object where it rests whose targets all solve and whose pads hold it."""
+        return solve_grasp_configurations(self.robot, self.ik, T_world_object, self.d, self.cfg.planning_margin_m,
+                                          retreat_m=self.cfg.retract_height_m,
+                                          safety_factor=self.cfg.grip_safety_factor)
+
+    def _adopt(self, configs: GraspConfigurations) -> None:
+        """Take these targets, after checking that their grip can hold the object (:class:`CannotHold` if not)."""
+        targets, obj = configs.targets, self.robot.scene.object
+        capacity = grip_capacity(self.robot, obj, targets.T_tcp_object, targets.width_m, self.cfg.grip_safety_factor,
+                                 up_tcp=targets.grasp.rotation[2])
+        capacity.require_holdable(obj.name)
+        self.configs, self.arm.capacity = configs, capacity
+        grasp = configs.chosen
+        self.out.grasp_approach, self.out.grasp_tilt_rad = grasp.approach.value, grasp.tilt_rad
+        self.out.grasp_width_m, self.out.grasps_tried = grasp.width_m, configs.grasps_tried
+        log.info("grasp: %s (tilted %.0f deg), %.1f mm wide, margin %.3f; %d tried", grasp.approach.value,
+                 math.degrees(grasp.tilt_rad), grasp.width_m * 1e3, grasp.margin, configs.grasps_tried)
+
+    def _plan_approach(self) -> Phase:
+        assert self.configs is not None
+        self.arm.plan_segment("approach", self.arm.free, self.configs.pregrasp.q)
+        return Phase.EXEC_APPROACH
+
+    def _exec_approach(self) -> Phase:
+        self.arm.execute(Phase.EXEC_APPROACH)
+        return Phase.DESCEND
+
+    def _descend(self) -> Phase:
+        """The straight approach from the pregrasp to the grasp (a descent for a top-down grasp)."""
+        assert self.configs is not None
+        targets = self.configs.targets
+        self.arm.linear(Phase.DESCEND, targets.grasp.translation)
+        want = (self._object_pose() * targets.T_object_tcp).translation  # where the grasp is, the object as it is
+        off = float(np.linalg.norm(self.arm.tcp_pose().translation - want))
+        if off > 0.005:
+            raise PhaseFailed(Phase.DESCEND, f"the tcp is {off * 1e3:.1f} mm from its grasp on the "
+                                             f"{self.robot.scene.object.name} (limit 5 mm)")
+        return Phase.CLOSE
+
+    def _close(self) -> Phase:
+        robot, d, cfg = self.robot, self.d, self.cfg
+        self.monitor.watch_object_at = None  # the pads move it now
+        self.monitor.allow_hand_object = True
+        gripper.command(robot, d, True)
+
+        def gripping() -> bool:
+            return (gripper.is_settled(robot, d, cfg.finger_settle_speed_m_s)
+                    and bool(np.all(gripper.pad_forces(robot, d) >= cfg.min_pad_force_n)))
+
+        settled = self.arm.hold_until(self.arm.q, gripping, cfg.close_timeout_s, min_s=5 * cfg.poll_s)
+        forces = gripper.pad_forces(robot, d)
+        if not settled:
+            travel = gripper.finger_travel(robot, d)
+            raise GraspFailed(f"the pads did not settle on the {robot.scene.object.name} within "
+                              f"{cfg.close_timeout_s:g} s: "
+                              f"pad forces {forces[0]:.1f} / {forces[1]:.1f} N (need {cfg.min_pad_force_n:g} "
+                              f"N each), finger travel {travel * 1e3:.1f} mm")
+        contacts = gripper.pad_contacts(robot, d)
+        obj = self._object_pose()
+        fc = analyze_grasp(contacts, obj.act(mass_properties(robot.scene.object).com_m),
+                           float(np.max(robot.scene.object.geometry().extent_m)) / 2)
+        self.out.grip_force_n = float(forces.sum())
+        self.out.force_closure = fc.force_closure
+        self.out.grasp_margin = fc.margin
+        if not fc.force_closure:
+            raise GraspFailed(f"the grip is not force closure ({len(contacts)} contacts, margin {fc.margin:.3g})")
+        self.monitor.start_holding(d)
+        tcp = self.arm.tcp_pose()
+        self.arm.T_tcp_object = tcp.actInv(obj)
+        self.arm.payload = Payload.held(robot.scene.object, self.arm.T_tcp_object)
+        self.arm.held_com_m = mass_properties(robot.scene.object).com_m
+        return Phase.LIFT
+
+    def _lift(self) -> Phase:
+        """Lift straight up, weighing the object on the way (the pads' force over its acceleration).
+
+        If the arm cannot hold the lift height because the object is heavier (or lighter) than believed, the
+        payload compensation is corrected with the measured mass and the move is repeated once.
+        """
+        assert self.configs is not None and self.arm.payload is not None
+        target_z = float(self.configs.targets.lift.translation[2])
+        z_object0 = float(self._object_pose().translation[2])
+        self.monitor.allow_object_table = True  # until it leaves the table
+        forces: list[float] = []
+        f_z: list[float] = []
+        g_plus_a: list[float] = []
+        monitor, h = self.monitor, self.robot.handles
+        g = float(-self.robot.mj.opt.gravity[2])
+        object_az = h.object_dof + 2  # the free joint's world z acceleration
+
+        def hook(d: mujoco.MjData) -> None:
+            monitor(d)
+            if monitor.allow_object_table and d.xpos[h.object_body][2] > z_object0 + 0.003:
+                monitor.allow_object_table = False  # airborne: touching the table again is a failure
+            if not monitor.allow_object_table:  # airborne: only the pads (and gravity) act on the object
+                normal, f = gripper.pad_load(self.robot, d)
+                forces.append(float(normal.sum()))
+                f_z.append(float(f[2]))
+                g_plus_a.append(g + float(d.qacc[object_az]))
+
+        def measured_mass() -> float:
+            return float(np.sum(f_z) / np.sum(g_plus_a)) if f_z else math.nan
+
+        try:
+            rec = control.move_vertical(self.robot, self.d, target_z, self.arm.motion_config(),
+                                        payload=self.arm.payload, hook=hook, noise=self.arm.noise,
+                                        raise_on_timeout=False)
+        finally:  # a slip aborts the move: still report what the pads felt
+            mass = measured_mass()
+            self.out.lift_load_n = mass * g if math.isfinite(mass) else 0.0
+        self.arm.count(rec)
+        if (not rec.reached and math.isfinite(mass) and abs(mass / self.arm.payload.mass_kg - 1.0) > 0.2
+                and self.budget.used < self.budget.max_retries):
+            self.budget.used += 1
+            note = (f"LIFT: the {self.robot.scene.object.name} weighs {mass:.3f} kg, not "
+                    f"{self.arm.payload.mass_kg:.3f} kg (the arm stopped "
+                    f"{rec.final_height_error_m * 1e3:.2f} mm short) -> payload compensation corrected")
+            self.out.recoveries.append(note)
+            log.info("recovery: %s", note)
+            self.arm.payload = dataclasses.replace(self.arm.payload, mass_kg=mass)
+            self.arm.capacity = dataclasses.replace(self.arm.capacity, mass_kg=mass) if self.arm.capacity else None
+            rec = control.move_vertical(self.robot, self.d, target_z, self.arm.motion_config(),
+                                        payload=self.arm.payload, hook=hook, noise=self.arm.noise,
+                                        raise_on_timeout=False)
+            self.arm.count(rec)
+            mass = measured_mass()
+        self.out.lift_grip_force_n = float(np.mean(forces)) if forces else 0.0
+        self.out.lift_load_n = mass * g if math.isfinite(mass) else 0.0
+        if not rec.reached:
+            raise PhaseFailed(Phase.LIFT, f"the tcp stopped {rec.final_height_error_m * 1e3:.2f} mm from the lift "
+                                          f"height (the {self.robot.scene.object.name} weighed {mass:.3f} kg)")
+        self.monitor.allow_object_table = False
+        rise = float(self._object_pose().translation[2]) - z_object0
+        lifted = target_z - float(self.configs.targets.grasp.translation[2])
+        if abs(rise - lifted) > self.cfg.slip_tolerance_m:
+            raise GraspFailed(f"the {self.robot.scene.object.name} rose {rise * 1e3:.1f} mm while the tcp rose "
+                              f"{lifted * 1e3:.1f} mm")
+        self.arm.T_tcp_object = self.arm.tcp_pose().actInv(self._object_pose())  # as it sits in the hand
+        self.arm.rise_until_clear(Phase.LIFT, lambda margin: self.arm.carrying(margin, False))
+        return Phase.PLAN_TRANSPORT
+
+    def _plan_transport(self) -> Phase:
+        """Re-target the place from the object's measured pose in the hand, then plan to above the goal."""
+        assert self.configs is not None
+        t0 = time.perf_counter()
+        tcp, obj = self.arm.tcp_pose(), self._object_pose()
+        self.arm.T_tcp_object = tcp.actInv(obj)
+        preplace, place = place_targets(self.robot.scene, tcp, obj, self.configs.targets.R_world_object_goal,
+                                        self.configs.targets.preplace_height_m)
+        finger = gripper.finger_travel(self.robot, self.d)
+        carry_ik = self.arm.carrying(self.cfg.planning_margin_m, False)  # the planner accepts it as a goal
+        place_ik = self.arm.carrying(0.0, True)
+        pre = solve_ik(self.robot, preplace, self.configs.preplace.q, "preplace", self.ik, carry_ik.is_valid, finger)
+        low = solve_ik(self.robot, place, pre.q, "place", self.ik, place_ik.is_valid, finger)
+        self.arm.note_ik(pre, low)
+        self.out.wall_plan_time_s += time.perf_counter() - t0
+        self.arm.plan_segment("transport", lambda margin: self.arm.carrying(margin, False), pre.q)
+        return Phase.EXEC_TRANSPORT
+
+    def _exec_transport(self) -> Phase:
+        assert self.arm.trajectory is not None
+        if self.faults.intruder and not self.injector.intruder_placed:  # it appears once the path is planned
+            T_end = frame_pose(self.robot.pin, self.robot.pin.createData(),
+                               self.robot.pin_q(self.arm.trajectory.waypoints[-1]), self.robot.pin_tcp_frame)
+            self.injector.place_intruder(self.d, self.arm.tcp_pose().translation, T_end.translation)
+        self.arm.execute(Phase.EXEC_TRANSPORT)
+        return Phase.DESCEND_PLACE
+
+    def _descend_place(self) -> Phase:
+        """Re-aim from the object's pose in the hand *now* (it shifts a little in transit), then set it down."""
+        assert self.configs is not None
+        t0 = time.perf_counter()
+        tcp, obj = self.arm.tcp_pose(), self._object_pose()
+        preplace, place = place_targets(self.robot.scene, tcp, obj, self.configs.targets.R_world_object_goal,
+                                        self.configs.targets.preplace_height_m)
+        finger = gripper.finger_travel(self.robot, self.d)
+        aim = solve_ik(self.robot, preplace, self.arm.q, "preplace", self.ik, finger_m=finger)
+        self.arm.note_ik(aim)
+        self.out.wall_plan_time_s += time.perf_counter() - t0
+        if float(np.max(np.abs(aim.q - self.arm.q))) > 1e-5:
+            self.arm.trajectory = retime(np.vstack([self.arm.q, aim.q]), self.timing)
+            self.arm.segment_checker = None  # a sub-millimetre correction: nothing to predict
+            self.arm.execute(Phase.DESCEND_PLACE)
+        monitor = self.monitor
+        z_table_touch = self.robot.scene.resting_z_m(self.configs.targets.R_world_object_goal) + 0.003
+
+        def hook(d: mujoco.MjData) -> None:
+            if d.xpos[self.robot.handles.object_body][2] < z_table_touch:
+                monitor.allow_object_table = True  # setting it down
+            monitor(d)
+
+        self.arm.vertical(Phase.DESCEND_PLACE, float(place.translation[2]), hook)
+        return Phase.RELEASE
+
+    def _release(self) -> Phase:
+        robot, d, cfg = self.robot, self.d, self.cfg
+        self.monitor.holding = False
+        self.monitor.allow_object_table = True
+        self.arm.payload = None
+        gripper.command(robot, d, False)
+        self._release_t = self.monitor.t
+        geom = gripper.GripperGeometry.measure(robot)
+        clear_travel = geom.contact_travel_m(self.configs.targets.width_m) - cfg.release_clearance_m
+        object_v = slice(robot.handles.object_dof, robot.handles.object_dof + 3)
+
+        def released() -> bool:
+            return (gripper.finger_travel(robot, d) <= clear_travel and not np.any(gripper.pad_forces(robot, d) > 0.0)
+                    and float(np.linalg.norm(d.qvel[object_v])) < cfg.object_rest_speed_m_s)
+
+        if not self.arm.hold_until(self.arm.q, released, cfg.release_timeout_s, min_s=cfg.poll_s):
+            forces = gripper.pad_forces(robot, d)
+            raise PhaseFailed(Phase.RELEASE, f"the pads did not clear the {robot.scene.object.name} within "
+                                             f"{cfg.release_timeout_s:g} "
+                                             f"s (finger travel {gripper.finger_travel(robot, d) * 1e3:.1f} mm, pad "
+                                             f"forces {forces[0]:.2f} / {forces[1]:.2f} N, its speed "
+                                             f"{float(np.linalg.norm(d.qvel[object_v])) * 1e3:.1f} mm/s)")
+        self.monitor.allow_hand_object = False
+        self._measure_place()
+        if self.out.place_error_xy_m > cfg.place_tolerance_xy_m:
+            raise PhaseFailed(Phase.RELEASE, f"the {robot.scene.object.name} rests "
+                                             f"{self.out.place_error_xy_m * 1e3:.2f} mm from the goal "
+                                             f"(tolerance {cfg.place_tolerance_xy_m * 1e3:.2f} mm)")
+        if abs(self.out.place_error_z_m) > cfg.place_tolerance_z_m:
+            raise PhaseFailed(Phase.RELEASE, f"the {robot.scene.object.name} rests "
+                                             f"{self.out.place_error_z_m * 1e3:.2f} mm above the "
+                                             "table (it should sit on it; tolerance "
+                                             f"{cfg.place_tolerance_z_m * 1e3:.2f} mm)")
+        if abs(self.out.place_error_yaw_rad) > cfg.place_tolerance_yaw_rad:
+            raise PhaseFailed(Phase.RELEASE, f"the {robot.scene.object.name}'s yaw is "
+                                             f"{self.out.place_error_yaw_rad:.3f} rad off the "
+                                             f"goal's (tolerance {cfg.place_tolerance_yaw_rad:.3f} rad)")
+        return Phase.RETRACT
+
+    def _measure_place(self) -> None:
+        scene = self.robot.scene
+        assert self.configs is not None
+        obj = self._object_pose()
+        err = obj.translation - scene.goal_resting_m(self.configs.targets.R_world_object_goal)
+        self.out.place_error_xy_m = float(np.hypot(err[0], err[1]))
+        self.out.place_error_z_m = float(err[2])
+        self.out.place_error_yaw_rad = yaw_error(obj.rotation, self.configs.targets.R_world_object_goal,
+                                                 scene.object.yaw_period_rad)
+
+    def _retract(self) -> Phase:
+        """Back off from the object along the approach, rise if the plan said so (or if the hand is still
+        within the planner's margin of something), and go home."""
+        assert self.configs is not None
+        self.arm.linear(Phase.RETRACT, backed_off(self.arm.tcp_pose(), self.cfg.retract_height_m).translation)
+        if self.configs.targets.retreat_rise_m > 0.0:
+            rise = self.configs.targets.retreat_rise_m
+            self.arm.vertical(Phase.RETRACT, float(self.arm.tcp_pose().translation[2]) + rise)
+        self.arm.rise_until_clear(Phase.RETRACT, self.arm.free)
+        self.arm.plan_segment("return", self.arm.free, self.robot.home_q)
+        self.arm.execute(Phase.RETRACT)
+        return Phase.DONE
+
+    def run(self) -> MachineOutcome:
+        """Run the phases to DONE or FAILED; never raises for a failure of the task itself."""
+        steps = {
+            Phase.IDLE: self._idle, Phase.PLAN_APPROACH: self._plan_approach,
+            Phase.EXEC_APPROACH: self._exec_approach, Phase.DESCEND: self._descend, Phase.CLOSE: self._close,
+            Phase.LIFT: self._lift, Phase.PLAN_TRANSPORT: self._plan_transport,
+            Phase.EXEC_TRANSPORT: self._exec_transport, Phase.DESCEND_PLACE: self._descend_place,
+            Phase.RELEASE: self._release, Phase.RETRACT: self._retract, Phase.RECOVER: self._recover,
+        }
+        phase = Phase.IDLE
+        out = self.out
+        while phase is not Phase.DONE:
+            self.monitor.phase = phase.value
+            t0 = self.monitor.t
+            try:
+                nxt = steps[phase]()
+            except ConfigError:
+                raise  # bad input is the caller's error, not a failed episode
+            except PickPlaceError as exc:
+                recovery = self._recovery(phase, exc)
+                self._spent(phase, t0, "failed" if recovery is None else "recovered")
+                if recovery is None:
+                    self._fail(phase, exc)
+                    break
+                phase = recovery
+                continue
+            self._spent(phase, t0, "ok")
+            log.debug("%s done in %.3f s (t = %.3f s)", phase.value, self.monitor.t - t0, self.monitor.t)
+            phase = nxt
+        else:
+            out.phase = Phase.DONE
+            out.cycle_time_s = self.monitor.t
+            self._after_done()
+        out.slip_max_m = self.monitor.slip_max_m
+        self.arm.finish_tracking()
+        return out
+
+    def _spent(self, phase: Phase, t0: float, outcome: str) -> None:
+        durations = self.out.phase_durations_s
+        durations[phase.value] = durations.get(phase.value, 0.0) + self.monitor.t - t0
+        self.out.timeline.append((phase.value, t0, self.monitor.t - t0, outcome))
+
+    def _recovery(self, phase: Phase, exc: PickPlaceError) -> Phase | None:
+        """The phase to continue with after ``exc`` in ``phase`` (:mod:`pickplace.task.recovery`), or None."""
+        contact = isinstance(exc, UnexpectedContact)
+        if contact:
+            self.out.unexpected_contacts.extend(p for p in exc.pairs if p not in self.out.unexpected_contacts)
+        if not self.budget.admits(phase, exc):
+            return None
+        recovery = recovery_for(phase, exc, contact and self._touches_object(exc))
+        if recovery is None:
+            return None
+        if recovery.first is FirstMove.STOP:
+            self.arm.stop()  # before planning from where the arm stands
+        elif recovery.first is FirstMove.BACK_OFF:
+            self.arm.back_off()
+        self.budget.spend(phase, exc)
+        note = f"{phase.value}: {type(exc).__name__}: {exc} -> {recovery.action}"
+        self.out.recoveries.append(note)
+        log.info("recovery %d/%d: %s", self.budget.used, self.budget.max_retries, note)
+        return recovery.next_phase
+
+    def _touches_object(self, exc: UnexpectedContact) -> bool:
+        """Whether every pair of the contact involves the object."""
+        return all(any(name in self._object_names for name in pair) for pair in exc.pairs)
+
+    def _recover(self) -> Phase:
+        """Stop, let go, back off upwards, wait for the object to rest wherever it fell, and observe it again for
+        a new approach (with whatever grasp now works)."""
+        robot, d, cfg = self.robot, self.d, self.cfg
+        scene = robot.scene
+        self.monitor.holding = False
+        self.monitor.watch_object_at = None
+        self.monitor.allow_hand_object = True
+        self.monitor.allow_object_table = True
+        self.arm.stop()  # with the grip as it is: opening at speed would throw whatever is still held
+        self.arm.payload = None
+        gripper.command(robot, d, False)
+        self.arm.hold(self.arm.q, 0.15)
+        z_safe = scene.table_height_m + float(np.max(scene.object.geometry().extent_m)) + CLEARANCE_M
+        if float(self.arm.tcp_pose().translation[2]) < z_safe:
+            self.arm.vertical(Phase.RECOVER, z_safe)
+        object_v = slice(robot.handles.object_dof, robot.handles.object_dof + 6)
+        name = scene.object.name
+        self.monitor.object_falling = True  # the arm waits; whatever the object lands on, it came to it
+        try:
+            rested = self.arm.hold_until(None, lambda: float(np.linalg.norm(d.qvel[object_v])) <= 0.01,
+                                      cfg.object_settle_timeout_s)
+        finally:
+            self.monitor.object_falling = False
+        if not rested:
+            raise PhaseFailed(Phase.RECOVER, f"the {name} did not come to rest within "
+                                             f"{cfg.object_settle_timeout_s:.1f} s")
+        self.monitor.allow_hand_object = False
+        obj = self._object_pose()
+        lowest = float(np.min(scene.object.geometry().vertices @ obj.rotation[2]) + obj.translation[2])
+        where = f"({obj.translation[0]:.3f}, {obj.translation[1]:.3f}) m"
+        if lowest < scene.table_height_m - 0.01:
+            raise PhaseFailed(Phase.RECOVER, f"the {name} fell off the table: it rests at {where}, "
+                                             f"{scene.table_height_m - lowest:.3f} m below the table top")
+        if lowest > scene.table_height_m + 0.005:
+            raise PhaseFailed(Phase.RECOVER, f"the {name} is not resting on the table: its lowest point is "
+                                             f"{(lowest - scene.table_height_m) * 1e3:.0f} mm above it at {where} "
+                                             "(it is stuck on something)")
+        t0 = time.perf_counter()
+        try:
+            self._adopt(self._solve_grasps(obj))
+        except UnreachableTarget as exc:
+            raise PhaseFailed(Phase.RECOVER, f"the {name} now rests at {where}, out of reach: {exc}") from exc
+        finally:
+            self.out.wall_plan_time_s += time.perf_counter() - t0
+        self.monitor.watch_object_at = obj.translation.copy()
+        log.info("recovery: the %s was observed again at (%.4f, %.4f) m, yaw %.3f rad", name, *obj.translation[:2],
+                 object_yaw(obj.rotation))
+        return Phase.PLAN_APPROACH
+
+    def _fail(self, phase: Phase, exc: PickPlaceError) -> None:
+        out = self.out
+        out.phase = Phase.FAILED
+        out.failure_phase = exc.phase if isinstance(exc, PhaseFailed) else phase
+        out.failure_reason = exc.reason if isinstance(exc, PhaseFailed) else str(exc)
+        out.failure_kind = type(exc).__name__
+        if self.budget.repeated:
+            out.failure_reason += " (the same failure as before the last recovery: not transient, no more retries)"
+        out.cycle_time_s = self.monitor.t
+        if isinstance(exc, UnexpectedContact):
+            out.unexpected_contacts = list(exc.pairs)
+        log.info("episode failed in %s: %s", out.failure_phase.value, out.failure_reason)
+
+    def _after_done(self) -> None:
+        """Keep simulating at home until ``stable_after_release_s`` after the release; measure the object."""
+        remaining = self._release_t + self.cfg.stable_after_release_s - self.monitor.t
+        self.monitor.phase = Phase.DONE.value
+        try:
+            if remaining > 0:
+                self.arm.hold(self.robot.home_q, remaining)
+        except PickPlaceError as exc:
+            self._fail(Phase.DONE, exc)
+            return
+        obj = self._object_pose()
+        err = obj.translation[:2] - self.robot.scene.goal_pos_m[:2]
+        self.out.final_place_error_xy_m = float(np.hypot(err[0], err[1]))
+        tol = self.cfg.place_tolerance_xy_m
+        if self.out.final_place_error_xy_m > tol:  # placed, then it moved: the place did not hold
+            self._fail(Phase.RELEASE, PhaseFailed(
+                Phase.RELEASE, f"the {self.robot.scene.object.name} moved after the release: it rests "
+                f"{self.out.final_place_error_xy_m * 1e3:.2f}"
+                f" mm from the goal {self.cfg.stable_after_release_s:g} s after it (tolerance {tol * 1e3:.2f} mm)"))
+
+
+__all__ = ["PickPlaceSkill"]
