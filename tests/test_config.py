@@ -9,7 +9,7 @@ import re
 import numpy as np
 import pytest
 
-from pickplace.errors import ConfigError, PickPlaceError
+from pickplace.errors import ConfigError, InsideObstacle, PickPlaceError
 from pickplace.world.config import MAX_CUBE_SIZE_M, MIN_CUBE_SIZE_M, SceneConfig
 from pickplace.world.objects import ObjectConfig, library_object
 
@@ -156,11 +156,11 @@ def test_the_wall_can_be_fixed_and_nothing_starts_or_ends_inside_it() -> None:
     scene = SceneConfig(obstacle=True, obstacle_xy_m=(0.40, 0.05))
     assert scene.obstacle_centre_xy_m == (0.40, 0.05)
     assert SceneConfig(obstacle=True, start_xy_m=(0.30, 0.20)).obstacle_centre_xy_m == pytest.approx((0.395, 0.0))
-    with pytest.raises(ConfigError, match=r"scene\.start_xy_m.*inside the obstacle wall"):
+    with pytest.raises(InsideObstacle, match=r"scene\.start_xy_m.*inside the obstacle wall"):  # a ConfigError
         SceneConfig(obstacle=True, obstacle_xy_m=(0.40, 0.05), start_xy_m=(0.45, 0.07))
     # 40 mm cube turned by 45 degrees: its corners reach 28 mm from its centre, the wall's face is at y = 0.07
     SceneConfig(obstacle=True, obstacle_xy_m=(0.40, 0.05), start_xy_m=(0.45, 0.099))
     with pytest.raises(ConfigError, match=r"scene\.start_xy_m"):
         SceneConfig(obstacle=True, obstacle_xy_m=(0.40, 0.05), start_xy_m=(0.45, 0.095), start_yaw_rad=0.785)
-    with pytest.raises(ConfigError, match=r"scene\.goal_xy_m.*overlap the obstacle wall"):
+    with pytest.raises(InsideObstacle, match=r"scene\.goal_xy_m.*overlap the obstacle wall"):
         SceneConfig(obstacle=True, obstacle_xy_m=(0.35, -0.20)).check_goal_on_table()

@@ -36,6 +36,11 @@ class ConfigError(PickPlaceError, ValueError):
         super().__init__(f"{field} = {value!r} is invalid: {allowed}")
 
 
+class InsideObstacle(ConfigError):
+    """The object would start, or be placed, inside the obstacle wall (a :class:`ConfigError` of the scene; a
+    campaign that draws such a pose draws again)."""
+
+
 class ModelError(PickPlaceError):
     """The MJCF model could not be built or a named element does not exist."""
 

@@ -16,7 +16,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from pickplace.errors import ConfigError
+from pickplace.errors import ConfigError, InsideObstacle
 from pickplace.world.checks import check_finite, check_int, check_range, check_vector
 from pickplace.world.objects import MAX_GRIP_WIDTH_M, MIN_GRIP_WIDTH_M, ObjectConfig
 
@@ -123,8 +123,8 @@ class SceneConfig:
             near = np.clip(np.asarray(self.goal_xy_m), lo, hi)
             gap = float(np.linalg.norm(np.asarray(self.goal_xy_m) - near)) - self.footprint_radius_m
             if gap < 0.0:
-                raise ConfigError("scene.goal_xy_m", tuple(self.goal_xy_m),
-                                  f"the {self.object.name} at the goal (any yaw) would overlap the obstacle wall "
+                raise InsideObstacle("scene.goal_xy_m", tuple(self.goal_xy_m),
+                                     f"the {self.object.name} at the goal (any yaw) would overlap the obstacle wall "
                                   f"by {-gap * 1e3:.1f} mm (wall x in [{lo[0]:.3f}, {hi[0]:.3f}], y in "
                                   f"[{lo[1]:.3f}, {hi[1]:.3f}] m)")
 
@@ -153,9 +153,9 @@ class SceneConfig:
         v = self.object.geometry().vertices[:, :2] @ np.array([[c, s_], [-s_, c]]) + np.asarray(self.start_xy_m)
         gap = float(np.max(np.concatenate([lo - v.max(axis=0), v.min(axis=0) - hi])))  # separating axis
         if gap < 0.0:
-            raise ConfigError("scene.start_xy_m", tuple(self.start_xy_m),
-                              f"the {self.object.name} would start inside the obstacle wall (wall x in "
-                              f"[{lo[0]:.3f}, {hi[0]:.3f}], y in [{lo[1]:.3f}, {hi[1]:.3f}] m)")
+            raise InsideObstacle("scene.start_xy_m", tuple(self.start_xy_m),
+                                 f"the {self.object.name} would start inside the obstacle wall (wall x in "
+                                 f"[{lo[0]:.3f}, {hi[0]:.3f}], y in [{lo[1]:.3f}, {hi[1]:.3f}] m)")
 
     def _check_on_table(self, name: str, xy: tuple[float, float]) -> None:
         """The object's whole footprint (any yaw) must lie on the table top."""
@@ -233,8 +233,8 @@ class SceneConfig:
         except ConfigError as exc:  # name the key the user wrote, if it was a legacy one
             for old, new in LEGACY_SCENE_KEYS.items():
                 if old in data and exc.field.startswith(f"scene.{new}"):
-                    raise ConfigError(exc.field.replace(f"scene.{new}", f"scene.{old}", 1), exc.value,
-                                      exc.allowed) from None
+                    raise type(exc)(exc.field.replace(f"scene.{new}", f"scene.{old}", 1), exc.value,
+                                    exc.allowed) from None
             raise
 
     def to_dict(self) -> dict[str, Any]:

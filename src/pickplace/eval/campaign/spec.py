@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from pickplace.errors import ConfigError, PickPlaceError
+from pickplace.errors import ConfigError, InsideObstacle, PickPlaceError
 from pickplace.task.episode import EpisodeConfig, EpisodeResult
 from pickplace.world.config import check_int, check_range, check_vector
 from pickplace.world.objects import LIBRARY, ObjectConfig, library_object, scaled
@@ -375,9 +375,7 @@ def make_trial(campaign: CampaignConfig, index: int) -> Trial:
         try:
             config = apply_params(campaign.base, params)
             config.scene.check_goal_on_table()
-        except ConfigError as exc:
-            if "obstacle" not in str(exc):
-                raise
+        except InsideObstacle:
             continue  # drawn inside the wall: draw again from the same stream
         return Trial(index, trial_seed(campaign.seed, index), params, config)
     raise ConfigError("randomization", campaign.randomization.to_dict(),
