@@ -119,6 +119,34 @@ def test_held_cube_pushed_into_the_table(robot: model.Robot, configs: GraspConfi
     assert placing.is_valid(q)
 
 
+def test_table_margin_keeps_the_cushion_from_walls_only(robot: model.Robot) -> None:
+    """``table_margin_m`` = 0 with a 10 mm margin: finger tips 4 mm above the table pass, the table counts at
+    contact only (the robot geoms still keep the margin from everything else)."""
+    z = robot.scene.table_height_m + TIP_BELOW_TCP_M + 0.004
+    q = _tcp_at(robot, (0.45, 0.0, z))
+    assert not CollisionChecker(robot, CollisionPolicy(margin_m=0.01)).is_valid(q)
+    assert CollisionChecker(robot, CollisionPolicy(margin_m=0.01, table_margin_m=0.0)).is_valid(q)
+    with pytest.raises(ConfigError, match=r"^collision\.table_margin_m = -0\.001 is invalid"):
+        CollisionPolicy(table_margin_m=-0.001)
+
+
+def test_one_checker_re_aimed_with_set_held_agrees_with_new_ones(robot: model.Robot,
+                                                                   configs: GraspConfigurations) -> None:
+    """A checker whose held object is moved with ``set_held`` answers as one built with that pose and opening."""
+    policy = CollisionPolicy(margin_m=0.005, object_held=True, allow_object_table=False)
+    reused = CollisionChecker(robot, policy)
+    rng = np.random.default_rng(3)
+    qs = np.vstack([configs.place.q, configs.preplace.q, configs.place.q + rng.normal(0.0, 0.05, (20, 6))])
+    for dz, finger in ((0.0, configs.held_finger_m), (-0.02, 0.0), (0.03, 0.01)):
+        rel = configs.targets.T_tcp_object * pin.SE3(np.eye(3), np.array([0.0, 0.0, dz]))
+        reused.set_held(rel, finger)
+        fresh = CollisionChecker(robot, CollisionPolicy(margin_m=0.005, object_held=True, allow_object_table=False,
+                                                        finger_m=finger), T_tcp_object=rel)
+        np.testing.assert_array_equal(reused.are_valid(qs), fresh.are_valid(qs))
+        for q in qs[:4]:
+            assert reused.colliding_pairs(q) == fresh.colliding_pairs(q)
+
+
 def test_policy_validation() -> None:
     with pytest.raises(ConfigError, match=r"^collision\.margin_m = -0\.01 is invalid"):
         CollisionPolicy(margin_m=-0.01)

@@ -622,7 +622,7 @@ def _cmd_objects(args: argparse.Namespace, console: Console) -> int:
                   f"{by.get('top', 0)} / {by.get('tilted', 0)} / {by.get('side', 0)}")
     console.print(t)
     console.print("Sources of the numbers: pickplace objects --json (field source). Default pose: the default "
-                  "scene's start; feasible = pregrasp and grasp reachable collision free.")
+                  "scene's start; feasible = pregrasp and the straight approach to the grasp collision free.")
     return 0
 
 

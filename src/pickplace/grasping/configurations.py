@@ -205,6 +205,26 @@ def solve_grasp_configurations(
                             first_error.position_error_m, first_error.orientation_error_rad)
 
 
+def feasible_grasps(robot: Robot, grasps: Sequence[GraspCandidate], T_world_object: pin.SE3 | None = None,
+                    clearance_m: float = 0.0, ik_config: IKConfig | None = None,
+                    retreat_m: float = RETREAT_M) -> list[GraspCandidate]:
+    """The grasps (in their order) that the arm can reach where the object rests: the pregrasp solves collision
+    free and so does the straight approach from it to the grasp, each grasp on its own (the first two links of
+    the chain :func:`solve_grasp_configurations` checks; the rest depends on the goal). Arguments as there."""
+    T_world_object = start_pose(robot) if T_world_object is None else T_world_object
+    T_home = home_tcp(robot)
+    chain = _Chain(robot, ik_config, None, clearance_m, retreat_m)
+    out = []
+    for grasp in grasps:
+        targets = grasp_targets(robot.scene, T_world_object, grasp.T_object_tcp, grasp.width_m, T_home)
+        try:
+            chain.reach(targets)
+        except UnreachableTarget:
+            continue
+        out.append(grasp)
+    return out
+
+
 def holdable(robot: Robot, grasps: Sequence[GraspCandidate], safety_factor: float,
              T_world_object: pin.SE3) -> list[GraspCandidate]:
     """The grasps whose pads hold the object's believed weight with ``safety_factor``, in their order: the
@@ -253,31 +273,36 @@ class _Chain:
                  retreat_m: float) -> None:
         self.robot, self.ik, self.world, self.clearance_m, self.retreat_m = robot, ik_config, world, clearance_m, \
             retreat_m
+        # Built once and re-aimed per grasp: the held object's pose and the fingers' opening change, the object
+        # at the goal moves with the grasp's place orientation.
         self.above = self._checker(CollisionPolicy(margin_m=clearance_m))
         self.approach = self._checker(CollisionPolicy(margin_m=LINE_CUSHION_M, table_margin_m=0.0))
+        self.lifting = self._checker(CollisionPolicy(margin_m=LINE_CUSHION_M, table_margin_m=0.0, object_held=True,
+                                                     allow_object_table=True))
+        self.carry = self._checker(CollisionPolicy(margin_m=clearance_m, object_held=True, allow_object_table=False))
+        self.at_goal = _world_with_object(robot, world, pin.SE3.Identity())
+        self.leaving = self._checker(CollisionPolicy(margin_m=LINE_CUSHION_M, table_margin_m=0.0,
+                                                     allow_gripper_object=True))
+        self.clear = self._checker(CollisionPolicy(margin_m=clearance_m, allow_gripper_object=True))
 
-    def _checker(self, policy: CollisionPolicy, T_tcp_object: pin.SE3 | None = None,
-                 world: mujoco.MjData | None = None) -> CollisionChecker:
-        checker = CollisionChecker(self.robot, policy, T_tcp_object=T_tcp_object)
-        world = world if world is not None else self.world
-        if world is not None:
-            checker.set_world(world)
+    def _checker(self, policy: CollisionPolicy) -> CollisionChecker:
+        checker = CollisionChecker(self.robot, policy)
+        if self.world is not None:
+            checker.set_world(self.world)
         return checker
 
     def solve(self, targets: GraspTargets, held_m: float) -> tuple[GraspTargets, list[IKResult]]:
         """The IK results ``[pregrasp, grasp, lift, preplace, place, retreat]`` and the targets as raised."""
-        robot, T_tcp_object = self.robot, targets.T_tcp_object
+        robot = self.robot
+        lifting, carry, leaving, clear = self.lifting, self.carry, self.leaving, self.clear
+        for checker in (lifting, carry):
+            checker.set_held(targets.T_tcp_object, held_m)
+        R_goal = targets.R_world_object_goal
+        _place_object(robot, self.at_goal, pin.SE3(R_goal, robot.scene.goal_resting_m(R_goal)))
+        for checker in (leaving, clear):
+            checker.set_world(self.at_goal)
 
-        def carrying(margin_m: float, table_margin_m: float | None = None, on_table: bool = False
-                     ) -> CollisionChecker:
-            policy = CollisionPolicy(margin_m=margin_m, object_held=True, allow_object_table=on_table,
-                                     finger_m=held_m, table_margin_m=table_margin_m)
-            return self._checker(policy, T_tcp_object)
-
-        pre = self._point("pregrasp", targets.pregrasp, robot.home_q, self.above)
-        grasp = self._line("grasp", targets.grasp, pre.q, self.approach)
-        lifting = carrying(LINE_CUSHION_M, 0.0, on_table=True)
-        carry = carrying(self.clearance_m)
+        pre, grasp = self.reach(targets)
         lift_m, lift = self._rise("lift", targets.grasp, grasp, CLEARANCE_M, lifting, carry, held_m)
         first: UnreachableTarget | None = None
         for h in _raise_steps(CLEARANCE_M):  # the preplace: the lowest that is clear
@@ -294,16 +319,16 @@ class _Chain:
             assert first is not None
             raise _raised_error(first)
         placed = self._line("place", targets.place, preplace.q, lifting, held_m)
-        at_goal = _world_with_object(robot, self.world, pin.SE3(targets.R_world_object_goal,
-                                                                robot.scene.goal_resting_m(targets.R_world_object_goal)))
-        leaving = self._checker(CollisionPolicy(margin_m=LINE_CUSHION_M, table_margin_m=0.0,
-                                                allow_gripper_object=True), world=at_goal)
-        clear = self._checker(CollisionPolicy(margin_m=self.clearance_m, allow_gripper_object=True), world=at_goal)
         back = backed_off(targets.place, self.retreat_m)
         backed = self._line("retreat", back, placed.q, leaving)
         rise_m, retreat = self._rise("retreat", back, backed, 0.0, leaving, clear)
         return (targets.raised_by(lift_m, preplace_m, self.retreat_m, rise_m),
                 [pre, grasp, lift, preplace, placed, retreat])
+
+    def reach(self, targets: GraspTargets) -> tuple[IKResult, IKResult]:
+        """The pregrasp (from ``home``) and the grasp at the end of the straight approach from it."""
+        pre = self._point("pregrasp", targets.pregrasp, self.robot.home_q, self.above)
+        return pre, self._line("grasp", targets.grasp, pre.q, self.approach)
 
     def _point(self, name: str, target: pin.SE3, q0: np.ndarray, checker: CollisionChecker,
                finger_m: float = 0.0) -> IKResult:
@@ -362,9 +387,14 @@ def _world_with_object(robot: Robot, world: mujoco.MjData | None, T_world_object
         mujoco.mj_resetDataKeyframe(robot.mj, d, 0)
     else:
         d.qpos[:], d.mocap_pos[:], d.mocap_quat[:] = world.qpos, world.mocap_pos, world.mocap_quat
+    _place_object(robot, d, T_world_object)
+    return d
+
+
+def _place_object(robot: Robot, d: mujoco.MjData, T_world_object: pin.SE3) -> None:
+    """Set the object's free joint in ``d`` to ``T_world_object``."""
     a = robot.handles.object_qpos
     d.qpos[a:a + 3] = T_world_object.translation
     quat = np.empty(4)
     mujoco.mju_mat2Quat(quat, np.ascontiguousarray(T_world_object.rotation).ravel())
     d.qpos[a + 3:a + 7] = quat
-    return d

@@ -2,8 +2,10 @@
 
 ``pickplace objects`` prints it. "Feasible" counts the grasps that work at the default pose: the object where
 the default scene starts it, each candidate placed there and clear of the table
-(:func:`~pickplace.grasping.configurations.candidate_grasps`), whose pregrasp and grasp both have a collision
-free IK solution (the straight approach's two ends; the lift and the place are solved when the episode runs).
+(:func:`~pickplace.grasping.configurations.candidate_grasps`), whose pregrasp solves collision free (with the
+planner's default 10 mm margin) and whose straight approach from there to the grasp does too, waypoint by
+waypoint (:func:`~pickplace.grasping.configurations.feasible_grasps`). The lift, the place and the retreat
+depend on the goal and are solved when the episode runs.
 """
 
 from __future__ import annotations
@@ -12,14 +14,14 @@ import dataclasses
 from collections import Counter
 from dataclasses import dataclass
 
-from pickplace.errors import UnreachableTarget
-from pickplace.grasping.configurations import candidate_grasps, object_grasps, start_pose
-from pickplace.motion.collision import CollisionChecker, CollisionPolicy
+from pickplace.grasping.configurations import candidate_grasps, feasible_grasps, object_grasps, start_pose
 from pickplace.robot.gripper import GripperGeometry
-from pickplace.robot.ik import solve_ik
 from pickplace.robot.model import build
 from pickplace.world.config import SceneConfig
 from pickplace.world.objects import LIBRARY, ObjectConfig
+
+#: Clearance the ends of the planned paths keep (m): ``MachineConfig.planning_margin_m``'s default.
+PLANNING_MARGIN_M = 0.01
 
 
 @dataclass(frozen=True)
@@ -35,7 +37,7 @@ class ObjectSummary:
         rolling_friction_m: Rolling friction length (m) (0: it does not roll, or rolling is not modelled).
         grasps: Grasp candidates of its geometry (object frame, every filter of the synthesis).
         grasps_at_default_pose: Of those, the ones clear of the table at the default pose.
-        feasible: Of those, the ones whose pregrasp and grasp are reachable collision free.
+        feasible: Of those, the ones the arm reaches collision free (pregrasp and straight approach).
         feasible_by_approach: ``feasible`` per approach (``top``, ``tilted``, ``side``).
         source: Where its numbers come from.
     """
@@ -65,16 +67,7 @@ def summarize_object(obj: ObjectConfig, scene: SceneConfig | None = None) -> Obj
     T = start_pose(robot)
     every = object_grasps(obj, geom)
     placed = candidate_grasps(robot, T)
-    free = CollisionChecker(robot, CollisionPolicy(margin_m=0.0))
-    feasible: Counter[str] = Counter()
-    for c in placed:
-        T_grasp = T * c.T_object_tcp
-        try:
-            pre = solve_ik(robot, T * c.pregrasp(), robot.home_q, "pregrasp", None, free.is_valid)
-            solve_ik(robot, T_grasp, pre.q, "grasp", None, free.is_valid)
-        except UnreachableTarget:
-            continue
-        feasible[c.approach.value] += 1
+    feasible = Counter(c.approach.value for c in feasible_grasps(robot, placed, T, PLANNING_MARGIN_M))
     ext = obj.geometry().extent_m
     return ObjectSummary(obj.name, obj.kind, (float(ext[0]), float(ext[1]), float(ext[2])), obj.mass_kg,
                          obj.friction, obj.rolling_friction_m, len(every), len(placed), sum(feasible.values()),

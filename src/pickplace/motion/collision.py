@@ -93,7 +93,8 @@ class CollisionChecker:
         self._arm = slice(int(h.arm_qpos[0]), int(h.arm_qpos[0]) + 6)
         assert np.array_equal(h.arm_qpos, np.arange(self._arm.start, self._arm.stop)), "arm qpos must be contiguous"
         mujoco.mj_resetDataKeyframe(self._m, self._d, 0)
-        self._d.qpos[h.finger_qpos] = self.policy.finger_m
+        self._finger_m = self.policy.finger_m
+        self._d.qpos[h.finger_qpos] = self._finger_m
         if world is not None:
             self.set_world(world)
         self._weld_held_object(T_tcp_object or pin.SE3.Identity())
@@ -109,9 +110,17 @@ class CollisionChecker:
         arm = self._d.qpos[self._arm].copy()
         self._d.qpos[:] = d.qpos
         self._d.qpos[self._arm] = arm
-        self._d.qpos[h.finger_qpos] = self.policy.finger_m
+        self._d.qpos[h.finger_qpos] = self._finger_m
         self._d.mocap_pos[:] = d.mocap_pos
         self._d.mocap_quat[:] = d.mocap_quat
+
+    def set_held(self, T_tcp_object: pin.SE3, finger_m: float | None = None) -> None:
+        """Carry the object at ``T_tcp_object`` from now on, the fingers at ``finger_m`` (m of travel) if given:
+        one checker serves grasp after grasp (the policy stays as it is)."""
+        self._weld_held_object(T_tcp_object)
+        if finger_m is not None:
+            self._finger_m = check_range("collision.finger_m", finger_m, 0.0, 0.040, unit="m")
+            self._d.qpos[self._handles.finger_qpos] = self._finger_m
 
     def _weld_held_object(self, T_tcp_object: pin.SE3) -> None:
         """Pose the held object's body in its parent (the body carrying the tcp site): T_tcp_site * T_tcp_object."""
