@@ -11,10 +11,12 @@ slip, lost grip                       CLOSE … DESCEND_PLACE            stop, o
 the held object hit the world         CLOSE … DESCEND_PLACE            the same (the robot itself touched nothing)
 the object moved before the grasp     EXEC_APPROACH, DESCEND           wait for it to rest, re-observe, approach
 the grasp missed, or hit the object   DESCEND                          back off, re-observe, approach again
+no path to the grasp's pregrasp       PLAN_APPROACH                    the next grasp in the ranking (a fallback)
 ====================================  ===============================  ============================================
 
 Everything else fails the episode with its phase and reason. A failure identical (numbers aside) to the one
-the last recovery answered is not retried: recovering changed nothing, so the cause is not transient.
+the last recovery answered is not retried: recovering changed nothing, so the cause is not transient (except
+a fallback to the next grasp, which changes the grasp).
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import enum
 import re
 from dataclasses import dataclass
 
-from pickplace.errors import GraspFailed, PickPlaceError
+from pickplace.errors import GraspFailed, PickPlaceError, PlanningFailed
 from pickplace.task.monitor import ObjectMoved, UnexpectedContact
 from pickplace.task.phases import CollisionPredicted, Phase, PhaseFailed
 
@@ -54,11 +56,13 @@ class Recovery:
         action: What is done, in words (for the result's ``recoveries``).
         next_phase: The phase to continue with.
         first: What the arm does at once.
+        next_grasp: The grasp in use is dropped: the next phase chooses another.
     """
 
     action: str
     next_phase: Phase
     first: FirstMove = FirstMove.NOTHING
+    next_grasp: bool = False
 
 
 def recovery_for(phase: Phase, exc: PickPlaceError, touches_object: bool) -> Recovery | None:
@@ -82,6 +86,8 @@ def recovery_for(phase: Phase, exc: PickPlaceError, touches_object: bool) -> Rec
         return Recovery("stop, wait for the object to rest, observe it again and approach again", Phase.RECOVER)
     if phase is Phase.DESCEND and (isinstance(exc, PhaseFailed) or (contact and touches_object)):
         return Recovery("back off, re-observe the object and approach again", Phase.RECOVER)
+    if isinstance(exc, PlanningFailed) and phase is Phase.PLAN_APPROACH:
+        return Recovery("drop this grasp and take the next one that solves", Phase.IDLE, next_grasp=True)
     return None
 
 
@@ -98,11 +104,12 @@ class RetryBudget:
         self.repeated = False  # the last refusal was a repeat of the failure before it
         self._last: tuple[Phase, str, str] | None = None
 
-    def admits(self, phase: Phase, exc: PickPlaceError) -> bool:
-        """Whether a recovery from ``exc`` in ``phase`` may be tried (retries left, not a repeat)."""
+    def admits(self, phase: Phase, exc: PickPlaceError, may_repeat: bool = False) -> bool:
+        """Whether a recovery from ``exc`` in ``phase`` may be tried (retries left, and not a repeat unless
+        ``may_repeat``: the recovery changes something a repeat does not show, e.g. the grasp)."""
         if self.used >= self.max_retries:
             return False
-        if self._signature(phase, exc) == self._last:
+        if not may_repeat and self._signature(phase, exc) == self._last:
             self.repeated = True
             return False
         return True

@@ -34,8 +34,9 @@ import pinocchio as pin
 
 from pickplace.errors import ConfigError, GraspFailed, PickPlaceError, UnreachableTarget
 from pickplace.grasping.closure import analyze_grasp
-from pickplace.grasping.configurations import GraspConfigurations, solve_grasp_configurations
+from pickplace.grasping.configurations import GraspConfigurations, candidate_grasps, solve_grasp_configurations
 from pickplace.grasping.grip import grip_capacity
+from pickplace.grasping.synthesis import GraspCandidate
 from pickplace.grasping.targets import CLEARANCE_M, backed_off, object_yaw, place_targets, yaw_error
 from pickplace.motion import control
 from pickplace.motion.control import Payload
@@ -73,6 +74,7 @@ class PickPlaceSkill:
         self.budget = RetryBudget(arm.cfg.max_retries)
         self.configs: GraspConfigurations | None = None
         self._release_t = math.nan
+        self._dropped: list[GraspCandidate] = []  # grasps given up on (no path to them), not tried again
         self._object_names = frozenset(object_geom_names(arm.robot.scene.object))
 
     def _object_pose(self) -> pin.SE3:
@@ -93,9 +95,11 @@ class PickPlaceSkill:
         return Phase.PLAN_APPROACH
 
     def _solve_grasps(self, T_world_object: pin.SE3) -> GraspConfigurations:
-        """The first grasp of the object where it rests whose targets all solve and whose pads hold it."""
+        """The first grasp of the object where it rests whose targets all solve and whose pads hold it (not one
+        given up on before)."""
+        grasps = [g for g in candidate_grasps(self.robot, T_world_object) if not any(g is d for d in self._dropped)]
         return solve_grasp_configurations(self.robot, self.ik, T_world_object, self.d, self.cfg.planning_margin_m,
-                                          retreat_m=self.cfg.retract_height_m,
+                                          grasps=grasps, retreat_m=self.cfg.retract_height_m,
                                           safety_factor=self.cfg.grip_safety_factor)
 
     def _adopt(self, configs: GraspConfigurations) -> None:
@@ -396,11 +400,13 @@ class PickPlaceSkill:
         contact = isinstance(exc, UnexpectedContact)
         if contact:
             self.out.unexpected_contacts.extend(p for p in exc.pairs if p not in self.out.unexpected_contacts)
-        if not self.budget.admits(phase, exc):
-            return None
         recovery = recovery_for(phase, exc, contact and self._touches_object(exc))
+        if not self.budget.admits(phase, exc, may_repeat=recovery is not None and recovery.next_grasp):
+            return None
         if recovery is None:
             return None
+        if recovery.next_grasp and self.configs is not None:
+            self._dropped.append(self.configs.chosen)
         if recovery.first is FirstMove.STOP:
             self.arm.stop()  # before planning from where the arm stands
         elif recovery.first is FirstMove.BACK_OFF:
