@@ -233,9 +233,9 @@ def holdable(robot: Robot, grasps: Sequence[GraspCandidate], safety_factor: floa
     Raises:
         CannotHold: none does; the grasp that comes closest is named with its forces (or torques).
     """
-    obj = robot.scene.object
+    obj, geom = robot.scene.object, GripperGeometry.measure(robot)
     capacities = [grip_capacity(robot, obj, g.T_object_tcp.inverse(), g.width_m, safety_factor,
-                                up_tcp=(T_world_object * g.T_object_tcp).rotation[2]) for g in grasps]
+                                up_tcp=(T_world_object * g.T_object_tcp).rotation[2], geom=geom) for g in grasps]
     kept = [g for g, c in zip(grasps, capacities, strict=True) if c.holds_at_rest]
     if not kept:
         def shortfall(c: GripCapacity) -> float:

@@ -34,7 +34,7 @@ import pinocchio as pin
 
 from pickplace.errors import CannotHold
 from pickplace.motion.timing import Trajectory
-from pickplace.robot.gripper import squeeze_per_pad_n
+from pickplace.robot.gripper import GripperGeometry, squeeze_per_pad_n
 from pickplace.robot.model import Robot
 from pickplace.world.mass import mass_properties
 from pickplace.world.objects import ObjectConfig
@@ -123,8 +123,8 @@ class GripCapacity:
 
 
 def grip_capacity(robot: Robot, obj: ObjectConfig, T_tcp_object: pin.SE3, width_m: float,
-                  safety_factor: float, mass_kg: float | None = None, up_tcp: np.ndarray | None = None
-                  ) -> GripCapacity:
+                  safety_factor: float, mass_kg: float | None = None, up_tcp: np.ndarray | None = None,
+                  geom: GripperGeometry | None = None) -> GripCapacity:
     """The capacity of a grip on ``obj`` held at ``T_tcp_object`` across ``width_m`` (m).
 
     Args:
@@ -136,13 +136,14 @@ def grip_capacity(robot: Robot, obj: ObjectConfig, T_tcp_object: pin.SE3, width_
         mass_kg: A mass to use instead of the configured one (e.g. after weighing it) (kg).
         up_tcp: The world's up direction in the tcp frame (3,); default: the object's z axis (it rests on its
             resting face).
+        geom: The gripper's measured geometry, if the caller has it (measured here otherwise).
     """
     com = T_tcp_object.act(mass_properties(obj).com_m)
     up = T_tcp_object.rotation[:, 2] if up_tcp is None else np.asarray(up_tcp, dtype=float)
     lever = float(abs(com[2] * up[0] - com[0] * up[2]))  # |(com x up) . y|, y the closing axis
     pad_torsion = float(np.max(robot.mj.geom_friction[robot.handles.pad_geoms, 1]))
     return GripCapacity(obj.mass_kg if mass_kg is None else mass_kg, obj.friction,
-                        squeeze_per_pad_n(robot, width_m), safety_factor,
+                        squeeze_per_pad_n(robot, width_m, geom), safety_factor,
                         (float(com[0]), float(com[1]), float(com[2])), lever,
                         max(pad_torsion, obj.torsional_friction_m))
 

@@ -113,7 +113,7 @@ class GripperGeometry:
         return self.open_inner_face_y_m - width_m / 2
 
 
-def squeeze_per_pad_n(robot: Robot, width_m: float) -> float:
+def squeeze_per_pad_n(robot: Robot, width_m: float, geom: GripperGeometry | None = None) -> float:
     """Normal force (N) each pad presses with on an object ``width_m`` wide, the gripper commanded closed.
 
     The position actuator pulls the fingers towards the fully closed stroke with ``kp`` times the distance
@@ -122,7 +122,7 @@ def squeeze_per_pad_n(robot: Robot, width_m: float) -> float:
     reaches its target before the limit).
     """
     m, a = robot.mj, robot.handles.gripper_actuator
-    geom = GripperGeometry.measure(robot)
+    geom = GripperGeometry.measure(robot) if geom is None else geom
     kp = float(m.actuator_gainprm[a, 0])
     limit = float(m.actuator_forcerange[a, 1]) if m.actuator_forcelimited[a] else math.inf
     short = geom.travel_m - geom.contact_travel_m(width_m)  # finger travel left when the pads touch (m)
