@@ -31,6 +31,7 @@ from pickplace.robot.ik import IKResult
 from pickplace.robot.model import Robot
 from pickplace.task.faults import FaultConfig, FaultInjector
 from pickplace.task.monitor import StepMonitor
+from pickplace.task.observe import Observer, SimulatorObserver
 from pickplace.task.phases import CollisionPredicted, MachineConfig, MachineOutcome, Phase, PhaseFailed, SegmentPlan
 from pickplace.task.telemetry import TelemetryRecorder
 
@@ -51,8 +52,11 @@ class Arm:
         faults: Faults to inject while it runs (the model faults must already be applied).
         rng: Seeded generator for the sensor-noise fault.
         out: The record the motions add to (segments, saturation, wall time); default: a new one.
+        observer: What the robot knows about the object (:mod:`pickplace.task.observe`); default: the
+            simulator's truth (the ideal profile).
 
     Attributes:
+        observer: The robot's source of knowledge about the object (the skills' and the monitor's).
         monitor: The per-step checks and the clock (``monitor.t``, s).
         payload: The held object's compensation, or None.
         capacity: What the grip holds, or None; motions that carry are slowed down to it.
@@ -73,6 +77,7 @@ class Arm:
         faults: FaultConfig | None = None,
         rng: np.random.Generator | None = None,
         out: MachineOutcome | None = None,
+        observer: Observer | None = None,
     ) -> None:
         self.robot, self.d = robot, data
         self.cfg, self.ctrl, self.planner, self.timing = machine, control_config, planner, timing
@@ -81,7 +86,8 @@ class Arm:
         self.injector = FaultInjector(robot, self.faults)
         rng = rng if rng is not None else np.random.default_rng(0)
         self.noise = control.JointNoise(self.faults.joint_noise_rad, rng) if self.faults.joint_noise_rad > 0 else None
-        self.monitor = StepMonitor(robot, recorder, machine.slip_tolerance_m, self.injector)
+        self.observer: Observer = observer if observer is not None else SimulatorObserver(robot, data)
+        self.monitor = StepMonitor(robot, recorder, machine.slip_tolerance_m, self.injector, self.observer)
         self.monitor.predict_every = max(1, round(machine.predict_period_s / float(robot.mj.opt.timestep)))
         self.out = out if out is not None else MachineOutcome()
         self.payload: Payload | None = None

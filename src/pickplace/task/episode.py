@@ -29,10 +29,12 @@ import logging
 import math
 import time
 import tomllib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import mujoco
 import numpy as np
 
 from pickplace.errors import ConfigError
@@ -40,9 +42,10 @@ from pickplace.motion.control import ControlConfig, PhaseTracking
 from pickplace.motion.planning import PlannerConfig
 from pickplace.motion.timing import TimingConfig
 from pickplace.robot.ik import IKConfig
-from pickplace.robot.model import build
+from pickplace.robot.model import Robot, build
 from pickplace.task.faults import LEGACY_FAULT_KEYS, FaultConfig, apply_model_faults
 from pickplace.task.machine import MachineConfig, MachineOutcome, Phase, PickPlaceMachine, SegmentPlan
+from pickplace.task.observe import Observer
 from pickplace.task.telemetry import Telemetry, TelemetryRecorder
 from pickplace.world.config import SceneConfig, from_mapping
 
@@ -263,7 +266,8 @@ class EpisodeResult:
 
 
 def run_episode(config: EpisodeConfig | None = None, seed: int = 0, *, record: bool = False,
-                frame_rate_hz: float = 30.0) -> EpisodeResult:
+                frame_rate_hz: float = 30.0,
+                observer: Callable[[Robot, mujoco.MjData], Observer] | None = None) -> EpisodeResult:
     """Run one pick and place in simulation and measure it.
 
     Args:
@@ -271,6 +275,9 @@ def run_episode(config: EpisodeConfig | None = None, seed: int = 0, *, record: b
         seed: Seed of the episode's random stream (the planner's).
         record: Keep per-step telemetry (for plots and video) in the result.
         frame_rate_hz: Video frames per simulated second kept when recording.
+        observer: Makes the robot's observer from the models and the simulation state (what the robot knows
+            about the object, :mod:`pickplace.task.observe`); default: the simulator's truth (the ideal
+            profile). The result's figures are measured on the truth either way.
 
     Returns:
         The :class:`EpisodeResult`; a failed pick or place is reported in it, not raised.
@@ -291,7 +298,8 @@ def run_episode(config: EpisodeConfig | None = None, seed: int = 0, *, record: b
     recorder = TelemetryRecorder(robot, frame_rate_hz, config.scene.goal_pos_m) if record else None
     noise_rng = np.random.default_rng([seed, 1])  # the sensor-noise stream, independent of the planner's
     machine = PickPlaceMachine(robot, data, config.machine, config.control, config.planner, config.timing, config.ik,
-                               recorder, config.faults, noise_rng)
+                               recorder, config.faults, noise_rng,
+                               observer(robot, data) if observer is not None else None)
     t_sim0 = time.perf_counter()
     out = machine.run()
     wall = time.perf_counter() - t0

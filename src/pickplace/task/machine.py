@@ -18,6 +18,7 @@ from pickplace.robot.ik import IKConfig
 from pickplace.robot.model import Robot
 from pickplace.task.arm import Arm
 from pickplace.task.faults import FaultConfig
+from pickplace.task.observe import Observer
 from pickplace.task.phases import (
     CollisionPredicted,
     MachineConfig,
@@ -45,6 +46,7 @@ class PickPlaceMachine:
         faults: Faults to inject (the model faults must already be applied, see
             :func:`pickplace.task.faults.apply_model_faults`).
         rng: Seeded generator for the sensor noise fault.
+        observer: What the robot knows about the object; default: the simulator's truth (ideal profile).
 
     Attributes:
         arm: The arm (its monitor keeps the clock: ``arm.monitor.t``).
@@ -63,8 +65,10 @@ class PickPlaceMachine:
         recorder: TelemetryRecorder | None = None,
         faults: FaultConfig | None = None,
         rng: np.random.Generator | None = None,
+        observer: Observer | None = None,
     ) -> None:
-        self.arm = Arm(robot, data, machine, control_config, planner, timing, recorder, faults, rng)
+        self.arm = Arm(robot, data, machine, control_config, planner, timing, recorder, faults, rng,
+                       observer=observer)
         self.skill = PickPlaceSkill(self.arm, ik)
         self.monitor = self.arm.monitor
 

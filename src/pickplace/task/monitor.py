@@ -14,6 +14,7 @@ import numpy as np
 from pickplace.errors import GraspFailed, PickPlaceError
 from pickplace.robot.model import Robot
 from pickplace.task.faults import FaultInjector
+from pickplace.task.observe import Observer
 from pickplace.task.telemetry import TelemetryRecorder
 
 
@@ -51,12 +52,15 @@ class StepMonitor:
         recorder: Telemetry, or None.
         slip_tolerance_m: Largest allowed motion of the held object in the tcp frame (m).
         injector: Timed faults to apply after each step, or None.
+        observer: Where the slip and "the object moved" checks learn the object's position (what the robot
+            senses); default: the simulator. The contact checks referee the episode and read the simulator.
     """
 
     def __init__(self, robot: Robot, recorder: TelemetryRecorder | None, slip_tolerance_m: float,
-                 injector: FaultInjector | None = None) -> None:
+                 injector: FaultInjector | None = None, observer: Observer | None = None) -> None:
         m, h = robot.mj, robot.handles
         self.robot = robot
+        self.observer = observer
         self.recorder = recorder
         self.injector = injector
         self.predictor: Callable[[mujoco.MjData, float], None] | None = None  # set while a trajectory runs
@@ -91,10 +95,15 @@ class StepMonitor:
         self._p_tcp_object0 = self._p_tcp_object(d)
         self.holding = True
 
+    def _object_position(self, d: mujoco.MjData) -> np.ndarray:
+        if self.observer is not None:
+            return self.observer.object_position()
+        return d.xpos[self.robot.handles.object_body]
+
     def _p_tcp_object(self, d: mujoco.MjData) -> np.ndarray:
         h = self.robot.handles
         R = d.site_xmat[h.tcp_site].reshape(3, 3)
-        return R.T @ (d.xpos[h.object_body] - d.site_xpos[h.tcp_site])
+        return R.T @ (self._object_position(d) - d.site_xpos[h.tcp_site])
 
     def allowed(self, a: int, b: int) -> bool:
         """Whether a contact between geom classes a and b is allowed now.
@@ -137,7 +146,7 @@ class StepMonitor:
                 raise GraspFailed(f"the {self.name} slipped {slip * 1e3:.2f} mm in the grip at t = {self.t:.3f} s "
                                   f"(tolerance {self.slip_tolerance_m * 1e3:.2f} mm)")
         if self.watch_object_at is not None:
-            moved = float(np.linalg.norm(d.xpos[self.robot.handles.object_body] - self.watch_object_at))
+            moved = float(np.linalg.norm(self._object_position(d) - self.watch_object_at))
             if moved > self.watch_tolerance_m:
                 self.watch_object_at = None
                 raise ObjectMoved(f"the {self.name} moved {moved * 1e3:.1f} mm from where it was observed "

@@ -47,6 +47,7 @@ from pickplace.robot.kinematics import frame_pose
 from pickplace.robot.model import object_geom_names
 from pickplace.task.arm import Arm
 from pickplace.task.monitor import UnexpectedContact
+from pickplace.task.observe import SimulatorObserver
 from pickplace.task.phases import MachineOutcome, Phase, PhaseFailed
 from pickplace.task.recovery import FirstMove, RetryBudget, recovery_for
 from pickplace.world.mass import mass_properties
@@ -70,6 +71,8 @@ class PickPlaceSkill:
         self.arm = arm
         self.robot, self.d, self.cfg, self.ik = arm.robot, arm.d, arm.cfg, ik
         self.monitor, self.out = arm.monitor, arm.out
+        self.observer = arm.observer  # everything the skill knows about the object comes through it
+        self._truth = SimulatorObserver(arm.robot, arm.d)  # only to measure the episode (results), never to act
         self.faults, self.injector, self.timing = arm.faults, arm.injector, arm.timing
         self.budget = RetryBudget(arm.cfg.max_retries)
         self.configs: GraspConfigurations | None = None
@@ -78,8 +81,8 @@ class PickPlaceSkill:
         self._object_names = frozenset(object_geom_names(arm.robot.scene.object))
 
     def _object_pose(self) -> pin.SE3:
-        h = self.robot.handles
-        return pin.SE3(self.d.xmat[h.object_body].reshape(3, 3).copy(), self.d.xpos[h.object_body].copy())
+        """Where the robot believes the object is (its observer's estimate)."""
+        return self.observer.object_pose()
 
     def _idle(self) -> Phase:
         """Observe the object, solve every target (before the arm moves: unreachable goals fail here)."""
@@ -144,17 +147,17 @@ class PickPlaceSkill:
 
         def gripping() -> bool:
             return (gripper.is_settled(robot, d, cfg.finger_settle_speed_m_s)
-                    and bool(np.all(gripper.pad_forces(robot, d) >= cfg.min_pad_force_n)))
+                    and bool(np.all(self.observer.pad_forces() >= cfg.min_pad_force_n)))
 
         settled = self.arm.hold_until(self.arm.q, gripping, cfg.close_timeout_s, min_s=5 * cfg.poll_s)
-        forces = gripper.pad_forces(robot, d)
+        forces = self.observer.pad_forces()
         if not settled:
             travel = gripper.finger_travel(robot, d)
             raise GraspFailed(f"the pads did not settle on the {robot.scene.object.name} within "
                               f"{cfg.close_timeout_s:g} s: "
                               f"pad forces {forces[0]:.1f} / {forces[1]:.1f} N (need {cfg.min_pad_force_n:g} "
                               f"N each), finger travel {travel * 1e3:.1f} mm")
-        contacts = gripper.pad_contacts(robot, d)
+        contacts = self.observer.pad_contacts()
         obj = self._object_pose()
         fc = analyze_grasp(contacts, obj.act(mass_properties(robot.scene.object).com_m),
                            float(np.max(robot.scene.object.geometry().extent_m)) / 2)
@@ -183,19 +186,18 @@ class PickPlaceSkill:
         forces: list[float] = []
         f_z: list[float] = []
         g_plus_a: list[float] = []
-        monitor, h = self.monitor, self.robot.handles
+        monitor, observer = self.monitor, self.observer
         g = float(-self.robot.mj.opt.gravity[2])
-        object_az = h.object_dof + 2  # the free joint's world z acceleration
 
         def hook(d: mujoco.MjData) -> None:
             monitor(d)
-            if monitor.allow_object_table and d.xpos[h.object_body][2] > z_object0 + 0.003:
+            if monitor.allow_object_table and observer.object_position()[2] > z_object0 + 0.003:
                 monitor.allow_object_table = False  # airborne: touching the table again is a failure
             if not monitor.allow_object_table:  # airborne: only the pads (and gravity) act on the object
-                normal, f = gripper.pad_load(self.robot, d)
+                normal, f = observer.pad_load()
                 forces.append(float(normal.sum()))
                 f_z.append(float(f[2]))
-                g_plus_a.append(g + float(d.qacc[object_az]))
+                g_plus_a.append(g + observer.object_vertical_acceleration())
 
         def measured_mass() -> float:
             return float(np.sum(f_z) / np.sum(g_plus_a)) if f_z else math.nan
@@ -280,11 +282,11 @@ class PickPlaceSkill:
             self.arm.trajectory = retime(np.vstack([self.arm.q, aim.q]), self.timing)
             self.arm.segment_checker = None  # a sub-millimetre correction: nothing to predict
             self.arm.execute(Phase.DESCEND_PLACE)
-        monitor = self.monitor
+        monitor, observer = self.monitor, self.observer
         z_table_touch = self.robot.scene.resting_z_m(self.configs.targets.R_world_object_goal) + 0.003
 
         def hook(d: mujoco.MjData) -> None:
-            if d.xpos[self.robot.handles.object_body][2] < z_table_touch:
+            if observer.object_position()[2] < z_table_touch:
                 monitor.allow_object_table = True  # setting it down
             monitor(d)
 
@@ -292,7 +294,9 @@ class PickPlaceSkill:
         return Phase.RELEASE
 
     def _release(self) -> Phase:
-        robot, d, cfg = self.robot, self.d, self.cfg
+        """Open, wait for the pads to clear the object and the object to rest, and check where it rests (as the
+        robot observes it; the result records the truth, :meth:`_measure_place`)."""
+        robot, d, cfg, observer = self.robot, self.d, self.cfg, self.observer
         self.monitor.holding = False
         self.monitor.allow_object_table = True
         self.arm.payload = None
@@ -300,45 +304,53 @@ class PickPlaceSkill:
         self._release_t = self.monitor.t
         geom = gripper.GripperGeometry.measure(robot)
         clear_travel = geom.contact_travel_m(self.configs.targets.width_m) - cfg.release_clearance_m
-        object_v = slice(robot.handles.object_dof, robot.handles.object_dof + 3)
+
+        def speed() -> float:
+            return float(np.linalg.norm(observer.object_velocity()[:3]))
 
         def released() -> bool:
-            return (gripper.finger_travel(robot, d) <= clear_travel and not np.any(gripper.pad_forces(robot, d) > 0.0)
-                    and float(np.linalg.norm(d.qvel[object_v])) < cfg.object_rest_speed_m_s)
+            return (gripper.finger_travel(robot, d) <= clear_travel and not np.any(observer.pad_forces() > 0.0)
+                    and speed() < cfg.object_rest_speed_m_s)
 
         if not self.arm.hold_until(self.arm.q, released, cfg.release_timeout_s, min_s=cfg.poll_s):
-            forces = gripper.pad_forces(robot, d)
+            forces = observer.pad_forces()
             raise PhaseFailed(Phase.RELEASE, f"the pads did not clear the {robot.scene.object.name} within "
                                              f"{cfg.release_timeout_s:g} "
                                              f"s (finger travel {gripper.finger_travel(robot, d) * 1e3:.1f} mm, pad "
                                              f"forces {forces[0]:.2f} / {forces[1]:.2f} N, its speed "
-                                             f"{float(np.linalg.norm(d.qvel[object_v])) * 1e3:.1f} mm/s)")
+                                             f"{speed() * 1e3:.1f} mm/s)")
         self.monitor.allow_hand_object = False
         self._measure_place()
-        if self.out.place_error_xy_m > cfg.place_tolerance_xy_m:
+        xy, z, yaw = self._place_errors(observer.object_pose())
+        if xy > cfg.place_tolerance_xy_m:
             raise PhaseFailed(Phase.RELEASE, f"the {robot.scene.object.name} rests "
-                                             f"{self.out.place_error_xy_m * 1e3:.2f} mm from the goal "
+                                             f"{xy * 1e3:.2f} mm from the goal "
                                              f"(tolerance {cfg.place_tolerance_xy_m * 1e3:.2f} mm)")
-        if abs(self.out.place_error_z_m) > cfg.place_tolerance_z_m:
+        if abs(z) > cfg.place_tolerance_z_m:
             raise PhaseFailed(Phase.RELEASE, f"the {robot.scene.object.name} rests "
-                                             f"{self.out.place_error_z_m * 1e3:.2f} mm above the "
+                                             f"{z * 1e3:.2f} mm above the "
                                              "table (it should sit on it; tolerance "
                                              f"{cfg.place_tolerance_z_m * 1e3:.2f} mm)")
-        if abs(self.out.place_error_yaw_rad) > cfg.place_tolerance_yaw_rad:
+        if abs(yaw) > cfg.place_tolerance_yaw_rad:
             raise PhaseFailed(Phase.RELEASE, f"the {robot.scene.object.name}'s yaw is "
-                                             f"{self.out.place_error_yaw_rad:.3f} rad off the "
+                                             f"{yaw:.3f} rad off the "
                                              f"goal's (tolerance {cfg.place_tolerance_yaw_rad:.3f} rad)")
         return Phase.RETRACT
 
-    def _measure_place(self) -> None:
-        scene = self.robot.scene
+    def _place_errors(self, T_world_object: pin.SE3) -> tuple[float, float, float]:
+        """Horizontal (m), height (m) and yaw (rad, modulo the object's symmetry) error of an object at rest at
+        ``T_world_object`` against the goal."""
         assert self.configs is not None
-        obj = self._object_pose()
-        err = obj.translation - scene.goal_resting_m(self.configs.targets.R_world_object_goal)
-        self.out.place_error_xy_m = float(np.hypot(err[0], err[1]))
-        self.out.place_error_z_m = float(err[2])
-        self.out.place_error_yaw_rad = yaw_error(obj.rotation, self.configs.targets.R_world_object_goal,
-                                                 scene.object.yaw_period_rad)
+        R_goal = self.configs.targets.R_world_object_goal
+        err = T_world_object.translation - self.robot.scene.goal_resting_m(R_goal)
+        return (float(np.hypot(err[0], err[1])), float(err[2]),
+                yaw_error(T_world_object.rotation, R_goal, self.robot.scene.object.yaw_period_rad))
+
+    def _measure_place(self) -> None:
+        """Record where the object really rests (the simulator's truth: a measurement of the episode, which the
+        robot does not use)."""
+        xy, z, yaw = self._place_errors(self._truth.object_pose())
+        self.out.place_error_xy_m, self.out.place_error_z_m, self.out.place_error_yaw_rad = xy, z, yaw
 
     def _retract(self) -> Phase:
         """Back off from the object along the approach, rise if the plan said so (or if the hand is still
@@ -437,11 +449,10 @@ class PickPlaceSkill:
         z_safe = scene.table_height_m + float(np.max(scene.object.geometry().extent_m)) + CLEARANCE_M
         if float(self.arm.tcp_pose().translation[2]) < z_safe:
             self.arm.vertical(Phase.RECOVER, z_safe)
-        object_v = slice(robot.handles.object_dof, robot.handles.object_dof + 6)
         name = scene.object.name
         self.monitor.object_falling = True  # the arm waits; whatever the object lands on, it came to it
         try:
-            rested = self.arm.hold_until(None, lambda: float(np.linalg.norm(d.qvel[object_v])) <= 0.01,
+            rested = self.arm.hold_until(None, lambda: float(np.linalg.norm(self.observer.object_velocity())) <= 0.01,
                                       cfg.object_settle_timeout_s)
         finally:
             self.monitor.object_falling = False
@@ -494,7 +505,7 @@ class PickPlaceSkill:
         except PickPlaceError as exc:
             self._fail(Phase.DONE, exc)
             return
-        obj = self._object_pose()
+        obj = self._truth.object_pose()  # a measurement of the episode
         err = obj.translation[:2] - self.robot.scene.goal_pos_m[:2]
         self.out.final_place_error_xy_m = float(np.hypot(err[0], err[1]))
         tol = self.cfg.place_tolerance_xy_m
