@@ -6,31 +6,21 @@ and the phase timeline. Both need the ``video`` extra (``pip install 'pickplace[
 imageio-ffmpeg, matplotlib); those packages are imported inside the functions, so ``import pickplace.eval.report``
 works without them.
 
-OpenGL backend. MuJoCo's Python bindings choose their OpenGL backend once, when ``mujoco`` is imported,
-from ``MUJOCO_GL`` (``glfw`` when unset, which needs a display). Setting the variable after ``import mujoco``
-has no effect. pickplace imports mujoco early, so :func:`render_video` handles the common headless case
-itself: when the bindings picked GLFW on Linux and there is no display (neither ``DISPLAY`` nor
-``WAYLAND_DISPLAY``), it creates the renderer on an EGL context (Mesa's libEGL renders on the CPU) and sets
-``MUJOCO_GL=egl`` for child processes. Any other failure to get a context raises :class:`RenderError` saying
-what to set. Setting ``MUJOCO_GL=egl`` before starting Python remains the most predictable choice.
+The OpenGL context (EGL without a display) comes from :func:`pickplace.perception.render.make_renderer`.
 """
 
 from __future__ import annotations
 
-import contextlib
 import logging
-import os
-import platform
-import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
 
-from pickplace.errors import PickPlaceError
+from pickplace.perception.render import RenderError, make_renderer
 from pickplace.robot.model import ARM_JOINTS, Robot
 from pickplace.task.telemetry import Telemetry
 
@@ -42,24 +32,8 @@ log = logging.getLogger(__name__)
 
 #: The pip command that installs the optional packages this module needs.
 VIDEO_EXTRA_HINT = "pip install 'pickplace[video]'"
-#: What to do when no OpenGL context can be created.
-GL_HINT = (
-    "set MUJOCO_GL=egl before starting Python and install Mesa's libEGL (Debian/Ubuntu: apt-get install "
-    "libegl1 libgl1; or MUJOCO_GL=osmesa with libosmesa6), or run with a display (MUJOCO_GL=glfw)"
-)
 #: Frame rate used when the telemetry has fewer than two frames (frames per second).
 DEFAULT_FPS = 30.0
-
-# Serialises the short window in which the bindings' GLContext class is swapped for EGL (see _gl_backend).
-_GL_SWAP_LOCK = threading.Lock()
-
-
-class RenderError(PickPlaceError):
-    """A video or a plot could not be produced: no OpenGL context, a missing optional package, bad input.
-
-    The message says what to do (the environment variable to set, or the package to install).
-    """
-
 
 # --------------------------------------------------------------------------- #
 # optional dependencies
@@ -79,67 +53,6 @@ def _import_optional(module: str) -> Any:
 # --------------------------------------------------------------------------- #
 # video
 # --------------------------------------------------------------------------- #
-
-
-def _has_display() -> bool:
-    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
-
-
-@contextlib.contextmanager
-def _gl_backend() -> Iterator[str]:
-    """Make ``mujoco.Renderer`` create a context on a backend that works here; yields the backend's name.
-
-    The bindings resolve ``mujoco.rendering.classic.gl_context.GLContext`` at ``import mujoco`` (from
-    ``MUJOCO_GL``) and ``mujoco.Renderer.__init__`` instantiates that class. When it is GLFW on Linux and there
-    is no display (``MUJOCO_GL`` unset at import), GLFW cannot make a context; the class is then replaced by
-    ``mujoco.egl.GLContext`` for the duration of the block only, under a lock (the renderer keeps the context
-    it created). There is no retry on EGL after GLFW *fails* with a display set: MuJoCo's context set-up is
-    left half-initialised by that failure and a second attempt aborts the process (measured with
-    ``DISPLAY=:99`` and no X server), so that case raises :class:`RenderError` instead.
-    """
-    try:
-        from mujoco.rendering.classic import gl_context
-    except ImportError as exc:  # pragma: no cover - depends on the mujoco build
-        raise RenderError(f"this mujoco build has no OpenGL rendering module ({exc}); {GL_HINT}") from exc
-    active = getattr(gl_context, "GLContext", None)
-    if active is None:
-        raise RenderError(f"MuJoCo's OpenGL rendering is disabled (MUJOCO_GL={os.environ.get('MUJOCO_GL')!r}); "
-                          f"{GL_HINT}")
-    name = getattr(active, "__module__", "unknown").rsplit(".", 1)[-1]
-    if not (name == "glfw" and platform.system() == "Linux" and not _has_display()):
-        yield name
-        return
-    try:
-        from mujoco.egl import GLContext as EGLContext
-    except (ImportError, OSError, AttributeError) as exc:
-        raise RenderError(f"there is no display for GLFW and MuJoCo's EGL backend cannot be loaded ({exc}); "
-                          f"{GL_HINT}") from exc
-    os.environ.setdefault("MUJOCO_GL", "egl")
-    log.info("no display and mujoco was imported with MUJOCO_GL unset (GLFW): rendering on EGL instead")
-    with _GL_SWAP_LOCK:
-        gl_context.GLContext = EGLContext
-        try:
-            yield "egl"
-        finally:
-            gl_context.GLContext = active
-
-
-def _make_renderer(m: mujoco.MjModel, width: int, height: int) -> tuple[mujoco.Renderer, str]:
-    """A ``mujoco.Renderer`` of ``width`` x ``height`` px on a working OpenGL backend, and the backend's name.
-
-    Raises:
-        RenderError: the size exceeds the model's offscreen buffer, or no OpenGL context can be made.
-    """
-    if width > m.vis.global_.offwidth or height > m.vis.global_.offheight:
-        raise RenderError(f"{width}x{height} px exceeds the model's offscreen buffer "
-                          f"{m.vis.global_.offwidth}x{m.vis.global_.offheight} px (<visual><global offwidth "
-                          f"offheight> in scene.xml); render smaller")
-    with _gl_backend() as backend:
-        try:
-            return mujoco.Renderer(m, height=height, width=width), backend
-        except Exception as exc:  # GLFW/EGL/OSMesa failures come as ImportError, FatalError, GLError, ...
-            raise RenderError(f"cannot create an OpenGL context with the {backend} backend "
-                              f"({type(exc).__name__}: {exc}); {GL_HINT}") from exc
 
 
 def _frame_fps(telemetry: Telemetry) -> float:
@@ -269,7 +182,7 @@ def render_video(
     font = _overlay_font(height) if overlay else None
 
     path.parent.mkdir(parents=True, exist_ok=True)
-    renderer, backend = _make_renderer(m, width, height)
+    renderer, backend = make_renderer(m, width, height)
     renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = shadows
     d = mujoco.MjData(m)
     t0 = time.perf_counter()

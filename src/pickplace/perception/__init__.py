@@ -1,0 +1,1 @@
+"""What the robot senses: a depth camera over the table, and poses fitted to what it sees."""
