@@ -1,0 +1,208 @@
+"""A fixed depth camera over the table: rendered depth images with a stereo sensor's noise, and point clouds.
+
+The camera renders the simulation offscreen (MuJoCo's depth buffer, :mod:`pickplace.perception.render`) and
+turns the exact depth into what a stereo depth sensor reports (:func:`sensor_depth`):
+
+* error growing with the square of the distance: an active stereo camera triangulates with a disparity error
+  of ``subpixel_px`` over a ``baseline_m`` baseline, so ``sigma_z = z^2 subpixel / (f baseline)`` (``f``: the
+  focal length in pixels). With the defaults (Intel RealSense D435 at 848 x 480) that is 2.4 mm at 0.8 m;
+* quantization to the sensor's depth unit (1 mm);
+* missing pixels at depth edges, where one of the two stereo views is occluded (``edge_jump_m``), and beyond
+  the sensor's range. Missing pixels are 0, as the sensor reports them.
+
+:func:`point_cloud` back-projects the valid pixels through the pinhole model into the world frame.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from pickplace.errors import ConfigError
+from pickplace.perception.render import make_renderer
+from pickplace.robot.model import Robot
+from pickplace.world.config import check_int, check_range, check_vector
+
+#: The D435's depth field of view is 87 x 58 degrees (Intel RealSense D400 series datasheet, rev. 0.9x, table
+#: "Depth field of view"); its recommended depth resolution is 848 x 480 (Intel, "Best known methods for tuning
+#: RealSense D4xx depth cameras").
+_D435_VFOV_RAD = math.radians(58.0)
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """A fixed depth camera (SI units; world frame).
+
+    The defaults are an Intel RealSense D435, a common active-stereo RGB-D camera, 0.8 m above the table:
+
+    * 848 x 480 px depth at 58 degrees vertical field of view (datasheet: 87 x 58 degrees);
+    * 50 mm stereo baseline and 0.08 px subpixel disparity RMS (datasheet: "subpixel RMS 0.08 typical"), for
+      the depth error model ``sigma_z = z^2 subpixel / (f baseline)``;
+    * depth unit 1 mm (the z16 stream's default scale); range 0.195 m (min-Z at 848 x 480) to 3 m;
+    * missing pixels within ``edge_px`` of a depth step larger than ``edge_jump_m`` (occlusion in one view).
+
+    Attributes:
+        position_m: The optical centre (3,) (m).
+        look_at_m: The point it looks at (3,) (m): the optical axis goes through it; the image's up is the
+            world's up projected on the image plane.
+        width_px, height_px: Image size (px).
+        vertical_fov_rad: Vertical field of view (rad).
+        baseline_m: Stereo baseline (m).
+        subpixel_px: Disparity error RMS (px).
+        depth_unit_m: Quantization of the reported depth (m).
+        min_range_m, max_range_m: Depth range the sensor reports (m); outside it pixels are missing.
+        edge_jump_m: A depth step between neighbouring pixels larger than this makes an edge (m).
+        edge_px: Pixels on each side of an edge that are missing (px).
+    """
+
+    position_m: tuple[float, float, float] = (0.80, 0.0, 1.05)
+    look_at_m: tuple[float, float, float] = (0.45, 0.0, 0.315)
+    width_px: int = 848
+    height_px: int = 480
+    vertical_fov_rad: float = _D435_VFOV_RAD
+    baseline_m: float = 0.050
+    subpixel_px: float = 0.08
+    depth_unit_m: float = 0.001
+    min_range_m: float = 0.195
+    max_range_m: float = 3.0
+    edge_jump_m: float = 0.02
+    edge_px: int = 1
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        set_(self, "position_m", check_vector("camera.position_m", self.position_m, 3, -5.0, 5.0, unit="m"))
+        set_(self, "look_at_m", check_vector("camera.look_at_m", self.look_at_m, 3, -5.0, 5.0, unit="m"))
+        check_int("camera.width_px", self.width_px, 8, 1280)
+        check_int("camera.height_px", self.height_px, 8, 720)
+        check_range("camera.vertical_fov_rad", self.vertical_fov_rad, 0.05, 2.5, unit="rad")
+        check_range("camera.baseline_m", self.baseline_m, 0.005, 0.5, unit="m")
+        check_range("camera.subpixel_px", self.subpixel_px, 0.0, 2.0, unit="px")
+        check_range("camera.depth_unit_m", self.depth_unit_m, 0.0, 0.01, unit="m")
+        check_range("camera.min_range_m", self.min_range_m, 0.0, 5.0, unit="m")
+        check_range("camera.max_range_m", self.max_range_m, self.min_range_m, 20.0, lo_open=True, unit="m")
+        check_range("camera.edge_jump_m", self.edge_jump_m, 0.0, 1.0, lo_open=True, unit="m")
+        check_int("camera.edge_px", self.edge_px, 0, 10)
+        forward = np.subtract(self.look_at_m, self.position_m)
+        if np.linalg.norm(forward) < 1e-3:
+            raise ConfigError("camera.look_at_m", self.look_at_m, "must differ from camera.position_m")
+        if np.linalg.norm(np.cross(forward / np.linalg.norm(forward), [0.0, 0.0, 1.0])) < 1e-3:
+            raise ConfigError("camera.look_at_m", self.look_at_m, "must not be straight below or above the camera "
+                         "(the image's up would be undefined): tilt it a little")
+
+    @property
+    def focal_px(self) -> float:
+        """Focal length (px), the same along both image axes (square pixels)."""
+        return 0.5 * self.height_px / math.tan(0.5 * self.vertical_fov_rad)
+
+    @property
+    def R_world_camera(self) -> np.ndarray:
+        """The camera's axes in the world (3, 3): columns right, down, forward (the image's x, y and depth)."""
+        forward = np.subtract(self.look_at_m, self.position_m)
+        forward = forward / np.linalg.norm(forward)
+        right = np.cross(forward, [0.0, 0.0, 1.0])
+        right /= np.linalg.norm(right)
+        down = np.cross(forward, right)
+        return np.column_stack([right, down, forward])
+
+    def depth_sigma_m(self, depth_m: np.ndarray | float) -> np.ndarray:
+        """The depth error RMS (m) of the stereo model at ``depth_m``: ``z^2 subpixel / (f baseline)``."""
+        z = np.asarray(depth_m, dtype=float)
+        return z**2 * self.subpixel_px / (self.focal_px * self.baseline_m)
+
+
+class DepthCamera:
+    """Renders depth images of a simulation from a :class:`CameraConfig`.
+
+    Args:
+        robot: The models (the scene to render).
+        config: The camera.
+
+    Raises:
+        RenderError: no OpenGL context, or an image larger than the model's offscreen buffer.
+    """
+
+    def __init__(self, robot: Robot, config: CameraConfig | None = None) -> None:
+        self.config = config if config is not None else CameraConfig()
+        c = self.config
+        self._m = copy.deepcopy(robot.mj)  # the field of view is the model's: set on a private copy
+        self._m.vis.global_.fovy = math.degrees(c.vertical_fov_rad)
+        self._renderer, self.backend = make_renderer(self._m, c.width_px, c.height_px)
+        self._renderer.enable_depth_rendering()
+        forward = np.subtract(c.look_at_m, c.position_m)
+        distance = float(np.linalg.norm(forward))
+        self._cam = mujoco.MjvCamera()
+        self._cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+        self._cam.lookat[:] = c.look_at_m
+        self._cam.distance = distance
+        self._cam.azimuth = math.degrees(math.atan2(forward[1], forward[0]))
+        self._cam.elevation = math.degrees(math.asin(forward[2] / distance))
+
+    def render_depth(self, data: mujoco.MjData) -> np.ndarray:
+        """The exact depth (H, W) (m) along the optical axis of every pixel, from the simulation as it is."""
+        self._renderer.update_scene(data, camera=self._cam)
+        return np.asarray(self._renderer.render(), dtype=float).copy()
+
+    def close(self) -> None:
+        """Release the OpenGL context."""
+        self._renderer.close()
+
+
+def sensor_depth(depth_m: np.ndarray, config: CameraConfig, rng: np.random.Generator) -> np.ndarray:
+    """What the sensor reports for an exact depth image (H, W) (m): noise growing with distance, quantized,
+    0 where a pixel is missing (beyond the range, or at a depth edge).
+
+    Args:
+        depth_m: Exact depth (H, W) (m), e.g. :meth:`DepthCamera.render_depth`.
+        config: The camera (its noise model).
+        rng: Seeded generator of the noise.
+    """
+    z = np.asarray(depth_m, dtype=float)
+    noisy = z + rng.normal(0.0, 1.0, z.shape) * config.depth_sigma_m(z)
+    if config.depth_unit_m > 0.0:
+        noisy = np.round(noisy / config.depth_unit_m) * config.depth_unit_m
+    missing = (z < config.min_range_m) | (z > config.max_range_m)
+    if config.edge_px > 0:
+        jump = np.zeros(z.shape, dtype=bool)
+        dx = np.abs(np.diff(z, axis=1)) > config.edge_jump_m
+        dy = np.abs(np.diff(z, axis=0)) > config.edge_jump_m
+        jump[:, 1:] |= dx
+        jump[:, :-1] |= dx
+        jump[1:, :] |= dy
+        jump[:-1, :] |= dy
+        for _ in range(config.edge_px - 1):  # widen the band
+            grown = jump.copy()
+            grown[1:, :] |= jump[:-1, :]
+            grown[:-1, :] |= jump[1:, :]
+            grown[:, 1:] |= jump[:, :-1]
+            grown[:, :-1] |= jump[:, 1:]
+            jump = grown
+        missing |= jump
+    return np.where(missing, 0.0, noisy)
+
+
+def point_cloud(depth_m: np.ndarray, config: CameraConfig, pixels: np.ndarray | None = None) -> np.ndarray:
+    """Back-project the valid (non-zero) pixels of a depth image (H, W) (m) into world points (N, 3) (m).
+
+    Args:
+        depth_m: Depth along the optical axis (m); 0 marks a missing pixel.
+        config: The camera (its pose and intrinsics).
+        pixels: Optional boolean mask (H, W) of the pixels to use (e.g. a segmentation).
+    """
+    z = np.asarray(depth_m, dtype=float)
+    h, w = z.shape
+    if (h, w) != (config.height_px, config.width_px):
+        raise ConfigError("depth_m", z.shape, f"must be ({config.height_px}, {config.width_px}), the camera's image")
+    valid = z > 0.0 if pixels is None else (z > 0.0) & pixels
+    v, u = np.nonzero(valid)
+    d = z[v, u]
+    f = config.focal_px
+    x = (u + 0.5 - 0.5 * w) * d / f
+    y = (v + 0.5 - 0.5 * h) * d / f
+    return np.asarray(config.position_m) + np.column_stack([x, y, d]) @ config.R_world_camera.T
+
+
+__all__ = ["CameraConfig", "DepthCamera", "point_cloud", "sensor_depth"]

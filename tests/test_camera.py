@@ -1,0 +1,96 @@
+"""The depth camera (pickplace.perception.camera): rendered depth, the sensor's noise, back-projection."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from pickplace.errors import ConfigError
+from pickplace.perception.camera import CameraConfig, DepthCamera, point_cloud, sensor_depth
+from pickplace.robot.model import Robot
+
+
+@pytest.fixture(scope="module")
+def exact(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
+    """The default scene seen by the default camera: exact depth (H, W) and the object's position."""
+    d = robot.make_data()
+    mujoco.mj_forward(robot.mj, d)
+    camera = DepthCamera(robot)
+    try:
+        depth = camera.render_depth(d)
+    finally:
+        camera.close()
+    return depth, d.xpos[robot.handles.object_body].copy()
+
+
+def test_back_projection_lands_on_the_table_and_the_cube(robot: Robot, exact) -> None:
+    """Exact depth back-projected: the table top at its height, the 40 mm cube's top face 40 mm above it and
+    centred on the cube (pinhole model, image orientation and camera pose all agree with the simulator)."""
+    depth, cube = exact
+    cfg = CameraConfig()
+    assert depth.shape == (cfg.height_px, cfg.width_px)
+    pts = point_cloud(depth, cfg)
+    table = (np.abs(pts[:, 0] - 0.60) < 0.05) & (np.abs(pts[:, 1] + 0.30) < 0.05)
+    assert table.sum() > 500
+    np.testing.assert_allclose(pts[table, 2], robot.scene.table_height_m, rtol=0, atol=1e-4)
+    top_z = robot.scene.table_height_m + 0.040
+    top = (np.abs(pts[:, 2] - top_z) < 5e-4) & (np.linalg.norm(pts[:, :2] - cube[:2], axis=1) < 0.05)
+    assert top.sum() > 200
+    np.testing.assert_allclose(pts[top, :2].mean(axis=0), cube[:2], rtol=0, atol=2e-3)
+    assert np.all(np.abs(pts[top, :2] - cube[:2]) <= 0.020 + 1e-3)  # inside the 40 mm face
+
+
+def test_sensor_noise_grows_with_distance_and_is_quantized(exact) -> None:
+    depth, _ = exact
+    cfg = CameraConfig()
+    # the stereo model: 2.4 mm at 0.8 m for the D435 at 848 x 480 (f = 433 px, 50 mm, 0.08 px)
+    assert cfg.focal_px == pytest.approx(240.0 / np.tan(np.radians(29.0)), rel=1e-12)
+    assert float(cfg.depth_sigma_m(0.8)) == pytest.approx(0.64 * 0.08 / (cfg.focal_px * 0.05), rel=1e-12)
+    assert float(cfg.depth_sigma_m(1.6)) == pytest.approx(4 * float(cfg.depth_sigma_m(0.8)), rel=1e-12)
+    noisy = sensor_depth(depth, cfg, np.random.default_rng(0))
+    valid = noisy > 0
+    assert valid.mean() > 0.95
+    units = noisy[valid] / cfg.depth_unit_m
+    np.testing.assert_allclose(units, np.round(units), rtol=0, atol=1e-6)  # whole millimetres
+    # residuals against the exact depth, normalised by the model (quantization adds unit^2 / 12): unit variance
+    expected = np.sqrt(cfg.depth_sigma_m(depth[valid]) ** 2 + cfg.depth_unit_m**2 / 12)
+    normalised = (noisy[valid] - depth[valid]) / expected
+    assert abs(float(np.std(normalised)) - 1.0) < 0.05
+    assert abs(float(np.mean(normalised))) < 0.01
+    # the same seed gives the same image; another seed another one
+    np.testing.assert_array_equal(noisy, sensor_depth(depth, cfg, np.random.default_rng(0)))
+    assert not np.array_equal(noisy, sensor_depth(depth, cfg, np.random.default_rng(1)))
+
+
+def test_pixels_at_depth_edges_and_out_of_range_are_missing(exact) -> None:
+    depth, _ = exact
+    cfg = CameraConfig()
+    noisy = sensor_depth(depth, cfg, np.random.default_rng(0))
+    jump_right = np.abs(np.diff(depth, axis=1)) > cfg.edge_jump_m  # an edge between column c and c + 1
+    rows, cols = np.nonzero(jump_right)
+    assert rows.size > 50  # the cube's and the table's outlines
+    assert np.all(noisy[rows, cols] == 0) and np.all(noisy[rows, cols + 1] == 0)
+    smooth = np.ones(depth.shape, dtype=bool)  # pixels with no edge within 2 px: all reported
+    for axis in (0, 1):
+        step = np.abs(np.diff(depth, axis=axis)) > cfg.edge_jump_m
+        for k in range(-2, 3):
+            smooth &= ~np.roll(np.pad(step, [(0, 1), (0, 0)] if axis == 0 else [(0, 0), (0, 1)]), k, axis=axis)
+    smooth &= (depth > cfg.min_range_m) & (depth < cfg.max_range_m)
+    assert smooth.sum() > 0.9 * depth.size
+    assert np.all(noisy[smooth] > 0)
+    near = CameraConfig(min_range_m=1.0)
+    assert np.all(sensor_depth(depth, near, np.random.default_rng(0))[depth < 1.0] == 0)
+
+
+def test_camera_config_is_validated() -> None:
+    with pytest.raises(ConfigError, match=r"camera\.width_px"):
+        CameraConfig(width_px=4)
+    with pytest.raises(ConfigError, match=r"camera\.look_at_m .* must differ"):
+        CameraConfig(position_m=(0.5, 0.0, 1.0), look_at_m=(0.5, 0.0, 1.0))
+    with pytest.raises(ConfigError, match=r"straight below"):
+        CameraConfig(position_m=(0.5, 0.0, 1.0), look_at_m=(0.5, 0.0, 0.3))
+    with pytest.raises(ConfigError, match=r"camera\.max_range_m"):
+        CameraConfig(min_range_m=2.0, max_range_m=1.0)
+    with pytest.raises(ConfigError, match=r"depth_m = \(10, 10\) is invalid"):
+        point_cloud(np.ones((10, 10)), CameraConfig())
