@@ -146,6 +146,23 @@ class DepthCamera:
         self._renderer.update_scene(data, camera=self._cam)
         return np.asarray(self._renderer.render(), dtype=float).copy()
 
+    def render_mask(self, data: mujoco.MjData, bodies: frozenset[int]) -> np.ndarray:
+        """Which pixels (H, W) show a geom of one of ``bodies`` first (bool): a self-filter, for the parts of the
+        scene the robot knows (its own links at their known configuration, the obstacles of its map)."""
+        self._renderer.disable_depth_rendering()
+        self._renderer.enable_segmentation_rendering()
+        try:
+            self._renderer.update_scene(data, camera=self._cam)
+            seg = np.asarray(self._renderer.render())
+        finally:
+            self._renderer.disable_segmentation_rendering()
+            self._renderer.enable_depth_rendering()
+        ids, types = seg[..., 0], seg[..., 1]
+        geom_body = self._m.geom_bodyid
+        is_geom = (types == int(mujoco.mjtObj.mjOBJ_GEOM)) & (ids >= 0)
+        body = np.where(is_geom, geom_body[np.clip(ids, 0, len(geom_body) - 1)], -1)
+        return np.isin(body, list(bodies))
+
     def close(self) -> None:
         """Release the OpenGL context."""
         self._renderer.close()

@@ -1,0 +1,149 @@
+"""The object's pose from a depth camera's point cloud: segment it from the table, fit its model to it.
+
+:func:`segment` keeps the points above the table top, on the table, and away from everything the robot knows
+is there (its own links at their known configuration, the obstacles of its map: ``known`` points). The
+largest cluster that is left is the object; fewer than ``min_points`` is :class:`ObjectNotSeen`, a clear
+failure rather than a guess.
+
+:func:`fit_resting_pose` fits the object's own surface mesh (box, cylinder, sphere, compound or mesh, one
+code path) to those points, for an object resting on its resting face: the unknowns are its position on the
+table and its yaw (x, y, yaw); its height is the table's. The model's surface is sampled densely
+(``trimesh.sample.sample_surface``, ``SURFACE_SAMPLES`` points with their face normals, in a KD-tree); each
+point's residual is its distance to the tangent plane of the nearest sample (point-to-plane, so the sampling
+spacing does not bias it on flat faces). ``scipy.optimize.least_squares`` minimises them (soft L1 loss, so
+that a few stray points do not pull it) from several starting yaws across the object's symmetry. The result
+reports the RMS residual (m) and how many points it used.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+from scipy import ndimage
+from scipy.optimize import least_squares
+from scipy.spatial import cKDTree
+
+from pickplace.errors import PickPlaceError
+from pickplace.robot.kinematics import rot_z
+from pickplace.world.objects import ObjectConfig
+
+#: Fewest points of the object for a fit.
+MIN_POINTS = 30
+#: Points used in the fit at most (a random subset beyond; the fit's cost grows with them).
+MAX_FIT_POINTS = 600
+#: Samples of the model's surface for the fit's nearest-point queries.
+SURFACE_SAMPLES = 20_000
+#: Starting yaws tried per symmetry period.
+_YAW_STARTS = 12
+
+
+class ObjectNotSeen(PickPlaceError):
+    """The camera sees too little of the object to fit its pose (the numbers say how little)."""
+
+
+@dataclass(frozen=True)
+class PoseEstimate:
+    """A fitted pose.
+
+    Attributes:
+        T_world_object: The object's pose (its resting frame).
+        residual_m: RMS distance of the points used from the fitted surface (m).
+        points: Points used.
+    """
+
+    T_world_object: pin.SE3
+    residual_m: float
+    points: int
+
+
+def segment(points: np.ndarray, table_height_m: float, table_box_xy_m: tuple[np.ndarray, np.ndarray],
+            clearance_m: float, min_points: int = MIN_POINTS) -> np.ndarray:
+    """The points (N, 3) of the object: above the table top, over the table, in the largest cluster.
+
+    Args:
+        points: World points (M, 3) (m), e.g. :func:`~pickplace.perception.camera.point_cloud` with the
+            robot's and the map's pixels already left out.
+        table_height_m: The table top's height (m).
+        table_box_xy_m: The table's corners (min (2,), max (2,)) (m).
+        clearance_m: Points less than this above the table top are the table (m): a few times the sensor's
+            depth noise there (:meth:`CameraConfig.depth_sigma_m`), or the noise makes table points of it.
+        min_points: Fewest points of an object.
+
+    Raises:
+        ObjectNotSeen: fewer than ``min_points`` are left.
+    """
+    lo, hi = table_box_xy_m
+    keep = ((points[:, 2] > table_height_m + clearance_m) & np.all(points[:, :2] >= lo, axis=1)
+            & np.all(points[:, :2] <= hi, axis=1))
+    above = points[keep]
+    if len(above) < min_points:
+        raise ObjectNotSeen(f"the camera sees {len(above)} points above the table (at least {min_points} needed)")
+    # the largest cluster on a 1 cm grid (8-connected cells), so that a stray blob does not join the object
+    cells = np.floor((above[:, :2] - above[:, :2].min(axis=0)) / 0.01).astype(int)
+    grid = np.zeros(cells.max(axis=0) + 1, dtype=bool)
+    grid[cells[:, 0], cells[:, 1]] = True
+    labels, _ = ndimage.label(grid, structure=np.ones((3, 3)))
+    ids = labels[cells[:, 0], cells[:, 1]]
+    biggest = np.bincount(ids).argmax()
+    obj = above[ids == biggest]
+    if len(obj) < min_points:
+        raise ObjectNotSeen(f"the largest cluster above the table has {len(obj)} points (at least {min_points} "
+                            "needed)")
+    return obj
+
+
+def fit_resting_pose(points: np.ndarray, obj: ObjectConfig, table_height_m: float,
+                     rng: np.random.Generator | None = None) -> PoseEstimate:
+    """Fit ``obj`` resting on the table to its points (N, 3) (m): position on the table and yaw.
+
+    Args:
+        points: The object's points (from :func:`segment`).
+        obj: The object (its geometry).
+        table_height_m: The table top's height (m).
+        rng: Generator for the subset of points (seeded: the same points give the same pose).
+
+    Raises:
+        ObjectNotSeen: fewer than ``MIN_POINTS`` points.
+    """
+    import trimesh
+
+    if len(points) < MIN_POINTS:
+        raise ObjectNotSeen(f"{len(points)} points of the {obj.name} (at least {MIN_POINTS} needed)")
+    rng = rng if rng is not None else np.random.default_rng(0)
+    if len(points) > MAX_FIT_POINTS:
+        points = points[rng.choice(len(points), MAX_FIT_POINTS, replace=False)]
+    geo = obj.geometry()
+    mesh = trimesh.Trimesh(geo.vertices, geo.faces, process=False)
+    samples, face = trimesh.sample.sample_surface(mesh, SURFACE_SAMPLES, seed=0)
+    normals = mesh.face_normals[face]
+    tree = cKDTree(samples)
+    z0 = table_height_m - geo.z_min_m
+
+    def to_object(x: np.ndarray) -> np.ndarray:
+        R = rot_z(x[2])
+        return (points - np.array([x[0], x[1], z0])) @ R  # R^T (p - t), row by row
+
+    def residuals(x: np.ndarray) -> np.ndarray:
+        local = to_object(x)
+        _, k = tree.query(local)
+        return np.einsum("ij,ij->i", local - samples[k], normals[k])
+
+    period = obj.yaw_period_rad if obj.yaw_period_rad > 0 else 2 * math.pi
+    centre = points[:, :2].mean(axis=0)
+    best = None
+    for k in range(_YAW_STARTS if obj.yaw_period_rad > 0 else 1):
+        x0 = np.array([centre[0], centre[1], k * period / _YAW_STARTS])
+        sol = least_squares(residuals, x0, loss="soft_l1", f_scale=0.002, x_scale=[0.01, 0.01, 0.1])
+        if best is None or sol.cost < best.cost:
+            best = sol
+    assert best is not None
+    x = best.x
+    r = residuals(x)
+    yaw = float(np.mod(x[2], period)) if obj.yaw_period_rad > 0 else 0.0
+    return PoseEstimate(pin.SE3(rot_z(yaw), np.array([x[0], x[1], z0])), float(np.sqrt(np.mean(r**2))), len(points))
+
+
+__all__ = ["MIN_POINTS", "ObjectNotSeen", "PoseEstimate", "fit_resting_pose", "segment"]
