@@ -94,3 +94,20 @@ def test_camera_config_is_validated() -> None:
         CameraConfig(min_range_m=2.0, max_range_m=1.0)
     with pytest.raises(ConfigError, match=r"depth_m = \(10, 10\) is invalid"):
         point_cloud(np.ones((10, 10)), CameraConfig())
+
+
+def test_calibration_error_is_drawn_per_trial_with_its_sigmas() -> None:
+    cfg = CameraConfig()
+    rng = np.random.default_rng(5)
+    drawn = [cfg.drawn(rng) for _ in range(400)]
+    dp = np.array([np.subtract(c.position_m, cfg.position_m) for c in drawn])
+    assert abs(float(np.std(dp)) - cfg.calibration_position_sigma_m) < 0.15 * cfg.calibration_position_sigma_m
+    axis0 = np.subtract(cfg.look_at_m, cfg.position_m)
+    angles = [np.arccos(np.clip(np.dot(axis0, np.subtract(c.look_at_m, c.position_m)) / np.dot(axis0, axis0),
+                                -1, 1)) for c in drawn]
+    # the optical axis turns by the two rotation components across it: RMS sqrt(2) sigma
+    assert abs(float(np.sqrt(np.mean(np.square(angles)))) - np.sqrt(2) * cfg.calibration_angle_sigma_rad) < (
+        0.15 * cfg.calibration_angle_sigma_rad)
+    exact = CameraConfig(calibration_position_sigma_m=0.0, calibration_angle_sigma_rad=0.0).drawn(rng)
+    np.testing.assert_allclose(exact.position_m, cfg.position_m, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(exact.look_at_m, cfg.look_at_m, rtol=0, atol=1e-12)

@@ -433,8 +433,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--object", metavar="NAME", help="a library object (see `pickplace objects`); default: the cube")
     p.set_defaults(func=_cmd_inspect)
 
-    p = sub.add_parser("bench", help="benchmarks: planning (vs OMPL), control (vs bare mj_step), campaign (scaling)")
-    p.add_argument("name", choices=["planning", "control", "campaign"], help="which benchmark")
+    p = sub.add_parser("bench", help="benchmarks: planning (vs OMPL), control (vs bare mj_step), campaign (scaling), "
+                                     "perception (camera pose error)")
+    p.add_argument("name", choices=["planning", "control", "campaign", "perception"], help="which benchmark")
     p.add_argument("bench_args", nargs=argparse.REMAINDER,
                    help="options of the benchmark (e.g. --json; planning: --quick, --queries N, --budget S, "
                         "--no-ompl)")

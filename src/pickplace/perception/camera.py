@@ -16,11 +16,13 @@ turns the exact depth into what a stereo depth sensor reports (:func:`sensor_dep
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 
 from pickplace.errors import ConfigError
 from pickplace.perception.render import make_renderer
@@ -43,7 +45,11 @@ class CameraConfig:
     * 50 mm stereo baseline and 0.08 px subpixel disparity RMS (datasheet: "subpixel RMS 0.08 typical"), for
       the depth error model ``sigma_z = z^2 subpixel / (f baseline)``;
     * depth unit 1 mm (the z16 stream's default scale); range 0.195 m (min-Z at 848 x 480) to 3 m;
-    * missing pixels within ``edge_px`` of a depth step larger than ``edge_jump_m`` (occlusion in one view).
+    * missing pixels within ``edge_px`` of a depth step larger than ``edge_jump_m`` (occlusion in one view);
+    * an extrinsic calibration error drawn per trial (:meth:`drawn`): 2 mm per axis and 0.2 degrees per axis
+      (RMS), inside the 1-5 mm and 0.1-0.5 degree range that hand-eye calibration methods reach (I. Enebuse et
+      al., "A comparative review of hand-eye calibration techniques for vision guided robots", IEEE Access 9,
+      2021).
 
     Attributes:
         position_m: The optical centre (3,) (m).
@@ -57,6 +63,8 @@ class CameraConfig:
         min_range_m, max_range_m: Depth range the sensor reports (m); outside it pixels are missing.
         edge_jump_m: A depth step between neighbouring pixels larger than this makes an edge (m).
         edge_px: Pixels on each side of an edge that are missing (px).
+        calibration_position_sigma_m: RMS error per axis of the camera's calibrated position (m).
+        calibration_angle_sigma_rad: RMS error per axis of its calibrated orientation (rad).
     """
 
     position_m: tuple[float, float, float] = (0.80, 0.0, 1.05)
@@ -71,6 +79,8 @@ class CameraConfig:
     max_range_m: float = 3.0
     edge_jump_m: float = 0.02
     edge_px: int = 1
+    calibration_position_sigma_m: float = 0.002
+    calibration_angle_sigma_rad: float = math.radians(0.2)
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -86,6 +96,8 @@ class CameraConfig:
         check_range("camera.max_range_m", self.max_range_m, self.min_range_m, 20.0, lo_open=True, unit="m")
         check_range("camera.edge_jump_m", self.edge_jump_m, 0.0, 1.0, lo_open=True, unit="m")
         check_int("camera.edge_px", self.edge_px, 0, 10)
+        check_range("camera.calibration_position_sigma_m", self.calibration_position_sigma_m, 0.0, 0.05, unit="m")
+        check_range("camera.calibration_angle_sigma_rad", self.calibration_angle_sigma_rad, 0.0, 0.1, unit="rad")
         forward = np.subtract(self.look_at_m, self.position_m)
         if np.linalg.norm(forward) < 1e-3:
             raise ConfigError("camera.look_at_m", self.look_at_m, "must differ from camera.position_m")
@@ -107,6 +119,19 @@ class CameraConfig:
         right /= np.linalg.norm(right)
         down = np.cross(forward, right)
         return np.column_stack([right, down, forward])
+
+    def drawn(self, rng: np.random.Generator) -> CameraConfig:
+        """Where the camera really is in one trial: this (calibrated) pose moved by a calibration error drawn
+        from ``rng`` (position: ``calibration_position_sigma_m`` per axis; orientation: the optical axis turned
+        about the optical centre by a rotation of ``calibration_angle_sigma_rad`` per axis; the image's roll
+        stays the one the world's up gives, so a roll error is not modelled). Render with it; back-project with
+        this."""
+        dp = rng.normal(0.0, self.calibration_position_sigma_m, 3)
+        R = pin.exp3(rng.normal(0.0, self.calibration_angle_sigma_rad, 3))
+        p = np.asarray(self.position_m) + dp
+        look = p + R @ (np.asarray(self.look_at_m) - np.asarray(self.position_m))
+        return dataclasses.replace(self, position_m=tuple(float(v) for v in p),
+                                   look_at_m=tuple(float(v) for v in look))
 
     def depth_sigma_m(self, depth_m: np.ndarray | float) -> np.ndarray:
         """The depth error RMS (m) of the stereo model at ``depth_m``: ``z^2 subpixel / (f baseline)``."""
