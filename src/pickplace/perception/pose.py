@@ -10,7 +10,9 @@ code path) to those points, for an object resting on its resting face: the unkno
 table and its yaw (x, y, yaw); its height is the table's. The model's surface is sampled densely
 (``trimesh.sample.sample_surface``, ``SURFACE_SAMPLES`` points with their face normals, in a KD-tree); each
 point's residual is its distance to the tangent plane of the nearest sample (point-to-plane, so the sampling
-spacing does not bias it on flat faces). ``scipy.optimize.least_squares`` minimises them (soft L1 loss, so
+spacing does not bias it on flat faces), or, where it is further from that sample than the samples' spacing
+(beyond a face's edge, where the plane says nothing), that distance less the spacing.
+``scipy.optimize.least_squares`` minimises them (soft L1 loss, so
 that a few stray points do not pull it) from several starting yaws across the object's symmetry. The result
 reports the RMS residual (m) and how many points it used.
 """
@@ -59,8 +61,27 @@ class PoseEstimate:
     points: int
 
 
+def observed_table_height(points: np.ndarray, nominal_m: float, table_box_xy_m: tuple[np.ndarray, np.ndarray],
+                          band_m: float = 0.02) -> float:
+    """The table top's height as the camera sees it (m): the median height of the points over the table within
+    ``band_m`` of the nominal height. A calibration error tilts and shifts the whole cloud; heights measured
+    from the table as seen, not from its nominal height, keep the object's fit from absorbing that shift.
+
+    Raises:
+        ObjectNotSeen: no point of the table is seen (the cloud is not of this scene).
+    """
+    lo, hi = table_box_xy_m
+    z = points[:, 2]
+    near = (np.abs(z - nominal_m) < band_m) & np.all(points[:, :2] >= lo, axis=1) & np.all(points[:, :2] <= hi,
+                                                                                            axis=1)
+    if not np.any(near):
+        raise ObjectNotSeen(f"no point of the table top within {band_m * 1e3:.0f} mm of its height "
+                            f"{nominal_m:.3f} m")
+    return float(np.median(z[near]))
+
+
 def segment(points: np.ndarray, table_height_m: float, table_box_xy_m: tuple[np.ndarray, np.ndarray],
-            clearance_m: float, min_points: int = MIN_POINTS) -> np.ndarray:
+            clearance_m: float, max_height_m: float = math.inf, min_points: int = MIN_POINTS) -> np.ndarray:
     """The points (N, 3) of the object: above the table top, over the table, in the largest cluster.
 
     Args:
@@ -70,13 +91,17 @@ def segment(points: np.ndarray, table_height_m: float, table_box_xy_m: tuple[np.
         table_box_xy_m: The table's corners (min (2,), max (2,)) (m).
         clearance_m: Points less than this above the table top are the table (m): a few times the sensor's
             depth noise there (:meth:`CameraConfig.depth_sigma_m`), or the noise makes table points of it.
+        max_height_m: Points higher than this above the table top are not the object (m): the robot knows
+            how tall the object is (e.g. its largest extent), and what is higher (a link the self-filter
+            missed by a pixel or two) must not be taken for it.
         min_points: Fewest points of an object.
 
     Raises:
         ObjectNotSeen: fewer than ``min_points`` are left.
     """
     lo, hi = table_box_xy_m
-    keep = ((points[:, 2] > table_height_m + clearance_m) & np.all(points[:, :2] >= lo, axis=1)
+    z = points[:, 2] - table_height_m
+    keep = ((z > clearance_m) & (z < max_height_m) & np.all(points[:, :2] >= lo, axis=1)
             & np.all(points[:, :2] <= hi, axis=1))
     above = points[keep]
     if len(above) < min_points:
@@ -126,10 +151,13 @@ def fit_resting_pose(points: np.ndarray, obj: ObjectConfig, table_height_m: floa
         R = rot_z(x[2])
         return (points - np.array([x[0], x[1], z0])) @ R  # R^T (p - t), row by row
 
+    spacing = math.sqrt(mesh.area / SURFACE_SAMPLES)  # mean distance between neighbouring samples (m)
+
     def residuals(x: np.ndarray) -> np.ndarray:
         local = to_object(x)
-        _, k = tree.query(local)
-        return np.einsum("ij,ij->i", local - samples[k], normals[k])
+        dist, k = tree.query(local)
+        plane = np.abs(np.einsum("ij,ij->i", local - samples[k], normals[k]))
+        return np.maximum(plane, dist - spacing)  # off the surface's edge, the plane alone would say 0
 
     period = obj.yaw_period_rad if obj.yaw_period_rad > 0 else 2 * math.pi
     centre = points[:, :2].mean(axis=0)
@@ -146,4 +174,4 @@ def fit_resting_pose(points: np.ndarray, obj: ObjectConfig, table_height_m: floa
     return PoseEstimate(pin.SE3(rot_z(yaw), np.array([x[0], x[1], z0])), float(np.sqrt(np.mean(r**2))), len(points))
 
 
-__all__ = ["MIN_POINTS", "ObjectNotSeen", "PoseEstimate", "fit_resting_pose", "segment"]
+__all__ = ["MIN_POINTS", "ObjectNotSeen", "PoseEstimate", "fit_resting_pose", "observed_table_height", "segment"]
