@@ -111,3 +111,19 @@ def test_calibration_error_is_drawn_per_trial_with_its_sigmas() -> None:
     exact = CameraConfig(calibration_position_sigma_m=0.0, calibration_angle_sigma_rad=0.0).drawn(rng)
     np.testing.assert_allclose(exact.position_m, cfg.position_m, rtol=0, atol=1e-12)
     np.testing.assert_allclose(exact.look_at_m, cfg.look_at_m, rtol=0, atol=1e-12)
+
+
+def test_render_from_another_pose_is_that_cameras_image(robot: Robot) -> None:
+    """One renderer serves the calibrated and the real pose: seen_from gives what a camera built there sees."""
+    d = robot.make_data()
+    mujoco.mj_forward(robot.mj, d)
+    moved = CameraConfig().drawn(np.random.default_rng(2))
+    one, other = DepthCamera(robot), DepthCamera(robot, moved)
+    try:
+        np.testing.assert_array_equal(one.render_depth(d, seen_from=moved), other.render_depth(d))
+        assert not np.array_equal(one.render_depth(d), other.render_depth(d))
+        with pytest.raises(ConfigError, match="seen_from"):
+            one.render_depth(d, seen_from=CameraConfig(width_px=424))
+    finally:
+        one.close()
+        other.close()

@@ -280,7 +280,7 @@ class _Chain:
         self.lifting = self._checker(CollisionPolicy(margin_m=LINE_CUSHION_M, table_margin_m=0.0, object_held=True,
                                                      allow_object_table=True))
         self.carry = self._checker(CollisionPolicy(margin_m=clearance_m, object_held=True, allow_object_table=False))
-        self.at_goal = _world_with_object(robot, world, pin.SE3.Identity())
+        self.at_goal = _world_copy(robot, world)  # the object moves to the goal per grasp (solve)
         self.leaving = self._checker(CollisionPolicy(margin_m=LINE_CUSHION_M, table_margin_m=0.0,
                                                      allow_gripper_object=True))
         self.clear = self._checker(CollisionPolicy(margin_m=clearance_m, allow_gripper_object=True))
@@ -380,14 +380,13 @@ def _naming(exc: UnreachableTarget, checker: CollisionChecker, q: np.ndarray) ->
                              exc.orientation_error_rad, q)
 
 
-def _world_with_object(robot: Robot, world: mujoco.MjData | None, T_world_object: pin.SE3) -> mujoco.MjData:
-    """A copy of ``world`` (default: the scene's initial state) with the object at ``T_world_object``."""
+def _world_copy(robot: Robot, world: mujoco.MjData | None) -> mujoco.MjData:
+    """A copy of ``world``'s positions (default: the scene's initial state), to move the object in."""
     d = mujoco.MjData(robot.mj)
     if world is None:
         mujoco.mj_resetDataKeyframe(robot.mj, d, 0)
     else:
         d.qpos[:], d.mocap_pos[:], d.mocap_quat[:] = world.qpos, world.mocap_pos, world.mocap_quat
-    _place_object(robot, d, T_world_object)
     return d
 
 

@@ -139,6 +139,19 @@ class CameraConfig:
         return z**2 * self.subpixel_px / (self.focal_px * self.baseline_m)
 
 
+def _free_camera(c: CameraConfig) -> mujoco.MjvCamera:
+    """MuJoCo's free camera at ``c``'s pose (optical axis from its position through its look-at point)."""
+    forward = np.subtract(c.look_at_m, c.position_m)
+    distance = float(np.linalg.norm(forward))
+    cam = mujoco.MjvCamera()
+    cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+    cam.lookat[:] = c.look_at_m
+    cam.distance = distance
+    cam.azimuth = math.degrees(math.atan2(forward[1], forward[0]))
+    cam.elevation = math.degrees(math.asin(forward[2] / distance))
+    return cam
+
+
 class DepthCamera:
     """Renders depth images of a simulation from a :class:`CameraConfig`.
 
@@ -157,18 +170,26 @@ class DepthCamera:
         self._m.vis.global_.fovy = math.degrees(c.vertical_fov_rad)
         self._renderer, self.backend = make_renderer(self._m, c.width_px, c.height_px)
         self._renderer.enable_depth_rendering()
-        forward = np.subtract(c.look_at_m, c.position_m)
-        distance = float(np.linalg.norm(forward))
-        self._cam = mujoco.MjvCamera()
-        self._cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-        self._cam.lookat[:] = c.look_at_m
-        self._cam.distance = distance
-        self._cam.azimuth = math.degrees(math.atan2(forward[1], forward[0]))
-        self._cam.elevation = math.degrees(math.asin(forward[2] / distance))
+        self._cam = _free_camera(c)
 
-    def render_depth(self, data: mujoco.MjData) -> np.ndarray:
-        """The exact depth (H, W) (m) along the optical axis of every pixel, from the simulation as it is."""
-        self._renderer.update_scene(data, camera=self._cam)
+    def render_depth(self, data: mujoco.MjData, seen_from: CameraConfig | None = None) -> np.ndarray:
+        """The exact depth (H, W) (m) along the optical axis of every pixel, from the simulation as it is.
+
+        Args:
+            data: The simulation state.
+            seen_from: Render from this pose instead of the config's (e.g. where the camera really is,
+                :meth:`CameraConfig.drawn`); its image size and field of view must be the config's.
+        """
+        camera = self._cam
+        if seen_from is not None:
+            c = self.config
+            if ((seen_from.width_px, seen_from.height_px, seen_from.vertical_fov_rad)
+                    != (c.width_px, c.height_px, c.vertical_fov_rad)):
+                raise ConfigError("seen_from", (seen_from.width_px, seen_from.height_px, seen_from.vertical_fov_rad),
+                                  f"must have this camera's image size and field of view ({c.width_px}, "
+                                  f"{c.height_px}, {c.vertical_fov_rad})")
+            camera = _free_camera(seen_from)
+        self._renderer.update_scene(data, camera=camera)
         return np.asarray(self._renderer.render(), dtype=float).copy()
 
     def render_mask(self, data: mujoco.MjData, bodies: frozenset[int]) -> np.ndarray:

@@ -100,11 +100,6 @@ class Arm:
         self._tallies: dict[str, control.TrackingTally] = {}
         self._tally_total = control.TrackingTally()
 
-    def let_go(self) -> None:
-        """Forget the held object (its compensation, its capacity)."""
-        self.payload = None
-        self.capacity = None
-
     def finish_tracking(self) -> None:
         """Write the tracking errors per phase, and over everything, into the record."""
         self.out.tracking = {phase: tally.result() for phase, tally in self._tallies.items()}

@@ -72,11 +72,7 @@ def run_object(name: str, trials: int, seed: int, camera: CameraConfig | None = 
             mujoco.mju_mat2Quat(quat, rot_z(yaw).ravel())
             d.qpos[a + 3:a + 7] = quat
             mujoco.mj_forward(robot.mj, d)
-            real = DepthCamera(robot, cfg.drawn(rng))
-            try:
-                exact = real.render_depth(d)
-            finally:
-                real.close()
+            exact = believed.render_depth(d, seen_from=cfg.drawn(rng))  # from where the camera really is
             t0 = time.perf_counter()
             depth = sensor_depth(exact, cfg, rng)
             # the robot's own links, rendered where it believes the camera is, widened by a few pixels for the
