@@ -33,6 +33,8 @@ from pickplace.world.config import check_int, check_range, check_vector
 #: "Depth field of view"); its recommended depth resolution is 848 x 480 (Intel, "Best known methods for tuning
 #: RealSense D4xx depth cameras").
 _D435_VFOV_RAD = math.radians(58.0)
+#: Geom groups of the camera's private model copy: the object's geoms, and markers a sensor cannot see.
+_OBJECT_GROUP, _HIDDEN_GROUP = 4, 5
 
 
 @dataclass(frozen=True)
@@ -168,17 +170,36 @@ class DepthCamera:
         c = self.config
         self._m = copy.deepcopy(robot.mj)  # the field of view is the model's: set on a private copy
         self._m.vis.global_.fovy = math.degrees(c.vertical_fov_rad)
+        # what a sensor sees: every body's geoms of the visible groups, but not the markers that only exist for
+        # the viewer (geoms that collide with nothing and are not the robot's visual meshes); the object's geoms
+        # go to their own group, so that the robot's own view of the scene can leave them out (hide_object)
+        m = self._m
+        marker = (m.geom_contype == 0) & (m.geom_conaffinity == 0) & ~np.isin(m.geom_bodyid,
+                                                                              list(robot.handles.robot_bodies))
+        m.geom_group[marker] = _HIDDEN_GROUP
+        m.geom_group[robot.handles.object_geoms] = _OBJECT_GROUP
+        self._seen = mujoco.MjvOption()
+        self._seen.geomgroup[:] = 0
+        for g in (0, 1, 2, _OBJECT_GROUP):
+            self._seen.geomgroup[g] = 1
+        self._seen.geomgroup[_HIDDEN_GROUP] = 0
+        self._known = mujoco.MjvOption()
+        self._known.geomgroup[:] = self._seen.geomgroup
+        self._known.geomgroup[_OBJECT_GROUP] = 0
         self._renderer, self.backend = make_renderer(self._m, c.width_px, c.height_px)
         self._renderer.enable_depth_rendering()
         self._cam = _free_camera(c)
 
-    def render_depth(self, data: mujoco.MjData, seen_from: CameraConfig | None = None) -> np.ndarray:
+    def render_depth(self, data: mujoco.MjData, seen_from: CameraConfig | None = None,
+                     hide_object: bool = False) -> np.ndarray:
         """The exact depth (H, W) (m) along the optical axis of every pixel, from the simulation as it is.
 
         Args:
             data: The simulation state.
             seen_from: Render from this pose instead of the config's (e.g. where the camera really is,
                 :meth:`CameraConfig.drawn`); its image size and field of view must be the config's.
+            hide_object: Leave the object out: the scene as the robot's model of it looks without the object
+                (its own links, the table), for comparing with what the sensor sees.
         """
         camera = self._cam
         if seen_from is not None:
@@ -189,7 +210,7 @@ class DepthCamera:
                                   f"must have this camera's image size and field of view ({c.width_px}, "
                                   f"{c.height_px}, {c.vertical_fov_rad})")
             camera = _free_camera(seen_from)
-        self._renderer.update_scene(data, camera=camera)
+        self._renderer.update_scene(data, camera=camera, scene_option=self._known if hide_object else self._seen)
         return np.asarray(self._renderer.render(), dtype=float).copy()
 
     def render_mask(self, data: mujoco.MjData, bodies: frozenset[int]) -> np.ndarray:
@@ -198,7 +219,7 @@ class DepthCamera:
         self._renderer.disable_depth_rendering()
         self._renderer.enable_segmentation_rendering()
         try:
-            self._renderer.update_scene(data, camera=self._cam)
+            self._renderer.update_scene(data, camera=self._cam, scene_option=self._seen)
             seg = np.asarray(self._renderer.render())
         finally:
             self._renderer.disable_segmentation_rendering()

@@ -29,6 +29,7 @@ from scipy.optimize import least_squares
 from scipy.spatial import cKDTree
 
 from pickplace.errors import PickPlaceError
+from pickplace.grasping.targets import object_yaw
 from pickplace.robot.kinematics import rot_z
 from pickplace.world.objects import ObjectConfig
 
@@ -38,6 +39,8 @@ MIN_POINTS = 30
 MAX_FIT_POINTS = 600
 #: Samples of the model's surface for the fit's nearest-point queries.
 SURFACE_SAMPLES = 20_000
+#: Points the starting yaws are tried on (the best start is then refined on all of them).
+START_POINTS = 150
 #: Starting yaws tried per symmetry period.
 _YAW_STARTS = 12
 
@@ -120,8 +123,47 @@ def segment(points: np.ndarray, table_height_m: float, table_box_xy_m: tuple[np.
     return obj
 
 
+class SurfaceModel:
+    """An object's surface for fits: dense samples of its mesh with their normals, in a KD-tree.
+
+    Each point's residual is its distance to the tangent plane of the nearest sample (point-to-plane, so the
+    sampling spacing does not bias it on flat faces), or, where it is further from that sample than the
+    samples' spacing (beyond a face's edge, where the plane says nothing), that distance less the spacing.
+
+    Args:
+        obj: The object (its geometry).
+    """
+
+    def __init__(self, obj: ObjectConfig) -> None:
+        import trimesh
+
+        geo = obj.geometry()
+        mesh = trimesh.Trimesh(geo.vertices, geo.faces, process=False)
+        self.samples, face = trimesh.sample.sample_surface(mesh, SURFACE_SAMPLES, seed=0)
+        self.normals = mesh.face_normals[face]
+        self.tree = cKDTree(self.samples)
+        self.spacing_m = math.sqrt(mesh.area / SURFACE_SAMPLES)  # mean distance between neighbouring samples (m)
+        self.z_min_m = float(geo.z_min_m)
+
+    def residuals(self, local: np.ndarray) -> np.ndarray:
+        """Distances (N,) (m) of points (N, 3) given in the object's frame from its surface."""
+        dist, k = self.tree.query(local)
+        plane = np.abs(np.einsum("ij,ij->i", local - self.samples[k], self.normals[k]))
+        return np.maximum(plane, dist - self.spacing_m)  # off the surface's edge, the plane alone would say 0
+
+
+def _subset(points: np.ndarray, obj: ObjectConfig, rng: np.random.Generator | None) -> np.ndarray:
+    if len(points) < MIN_POINTS:
+        raise ObjectNotSeen(f"{len(points)} points of the {obj.name} (at least {MIN_POINTS} needed)")
+    rng = rng if rng is not None else np.random.default_rng(0)
+    if len(points) > MAX_FIT_POINTS:
+        points = points[rng.choice(len(points), MAX_FIT_POINTS, replace=False)]
+    return points
+
+
 def fit_resting_pose(points: np.ndarray, obj: ObjectConfig, table_height_m: float,
-                     rng: np.random.Generator | None = None) -> PoseEstimate:
+                     rng: np.random.Generator | None = None, start: pin.SE3 | None = None,
+                     model: SurfaceModel | None = None) -> PoseEstimate:
     """Fit ``obj`` resting on the table to its points (N, 3) (m): position on the table and yaw.
 
     Args:
@@ -129,49 +171,73 @@ def fit_resting_pose(points: np.ndarray, obj: ObjectConfig, table_height_m: floa
         obj: The object (its geometry).
         table_height_m: The table top's height (m).
         rng: Generator for the subset of points (seeded: the same points give the same pose).
+        start: Start from this pose only (a pose known to be close, e.g. to check whether the object moved);
+            default: from the points' centre at several yaws across the object's symmetry.
+        model: The object's :class:`SurfaceModel`, if already built (it is the same for every fit).
 
     Raises:
         ObjectNotSeen: fewer than ``MIN_POINTS`` points.
     """
-    import trimesh
-
-    if len(points) < MIN_POINTS:
-        raise ObjectNotSeen(f"{len(points)} points of the {obj.name} (at least {MIN_POINTS} needed)")
-    rng = rng if rng is not None else np.random.default_rng(0)
-    if len(points) > MAX_FIT_POINTS:
-        points = points[rng.choice(len(points), MAX_FIT_POINTS, replace=False)]
-    geo = obj.geometry()
-    mesh = trimesh.Trimesh(geo.vertices, geo.faces, process=False)
-    samples, face = trimesh.sample.sample_surface(mesh, SURFACE_SAMPLES, seed=0)
-    normals = mesh.face_normals[face]
-    tree = cKDTree(samples)
-    z0 = table_height_m - geo.z_min_m
-
-    def to_object(x: np.ndarray) -> np.ndarray:
-        R = rot_z(x[2])
-        return (points - np.array([x[0], x[1], z0])) @ R  # R^T (p - t), row by row
-
-    spacing = math.sqrt(mesh.area / SURFACE_SAMPLES)  # mean distance between neighbouring samples (m)
+    points = _subset(points, obj, rng)
+    model = model if model is not None else SurfaceModel(obj)
+    z0 = table_height_m - model.z_min_m
 
     def residuals(x: np.ndarray) -> np.ndarray:
-        local = to_object(x)
-        dist, k = tree.query(local)
-        plane = np.abs(np.einsum("ij,ij->i", local - samples[k], normals[k]))
-        return np.maximum(plane, dist - spacing)  # off the surface's edge, the plane alone would say 0
+        return model.residuals((points - np.array([x[0], x[1], z0])) @ rot_z(x[2]))  # R^T (p - t), row by row
 
     period = obj.yaw_period_rad if obj.yaw_period_rad > 0 else 2 * math.pi
-    centre = points[:, :2].mean(axis=0)
+    if start is not None:
+        starts = [np.array([start.translation[0], start.translation[1], object_yaw(start.rotation)])]
+    else:
+        centre = points[:, :2].mean(axis=0)
+        starts = [np.array([centre[0], centre[1], k * period / _YAW_STARTS])
+                  for k in range(_YAW_STARTS if obj.yaw_period_rad > 0 else 1)]
     best = None
-    for k in range(_YAW_STARTS if obj.yaw_period_rad > 0 else 1):
-        x0 = np.array([centre[0], centre[1], k * period / _YAW_STARTS])
-        sol = least_squares(residuals, x0, loss="soft_l1", f_scale=0.002, x_scale=[0.01, 0.01, 0.1])
-        if best is None or sol.cost < best.cost:
-            best = sol
-    assert best is not None
-    x = best.x
+    if len(starts) > 1:  # the starts on a quarter of the points; the best one refined on all of them
+        every = points
+        points = points[:: max(1, len(points) // START_POINTS)]
+        for x0 in starts:
+            sol = least_squares(residuals, x0, loss="soft_l1", f_scale=0.002, x_scale=[0.01, 0.01, 0.1])
+            if best is None or sol.cost < best.cost:
+                best = sol
+        assert best is not None
+        starts, points = [best.x], every
+    sol = least_squares(residuals, starts[0], loss="soft_l1", f_scale=0.002, x_scale=[0.01, 0.01, 0.1])
+    x = sol.x
     r = residuals(x)
     yaw = float(np.mod(x[2], period)) if obj.yaw_period_rad > 0 else 0.0
     return PoseEstimate(pin.SE3(rot_z(yaw), np.array([x[0], x[1], z0])), float(np.sqrt(np.mean(r**2))), len(points))
 
 
-__all__ = ["MIN_POINTS", "ObjectNotSeen", "PoseEstimate", "fit_resting_pose", "observed_table_height", "segment"]
+def fit_held_pose(points: np.ndarray, obj: ObjectConfig, guess: pin.SE3, rng: np.random.Generator | None = None,
+                  model: SurfaceModel | None = None) -> PoseEstimate:
+    """Fit the position of ``obj`` held in the hand to its points (N, 3) (m), its orientation the ``guess``'s.
+
+    In the hand the grasp fixes the object's orientation to within the pads' compliance; where the pads
+    closed on it along their faces is what the grasp model does not know (the error of the estimate it was
+    picked from), so the fit's unknowns are the three coordinates of its position.
+
+    Args:
+        points: The object's points.
+        obj: The object (its geometry).
+        guess: Where the grasp model puts it (its orientation is kept).
+        rng: Generator for the subset of points.
+        model: The object's :class:`SurfaceModel`, if already built.
+
+    Raises:
+        ObjectNotSeen: fewer than ``MIN_POINTS`` points.
+    """
+    points = _subset(points, obj, rng)
+    model = model if model is not None else SurfaceModel(obj)
+    R = guess.rotation
+
+    def residuals(t: np.ndarray) -> np.ndarray:
+        return model.residuals((points - t) @ R)
+
+    sol = least_squares(residuals, guess.translation.copy(), loss="soft_l1", f_scale=0.002, x_scale=0.01)
+    r = residuals(sol.x)
+    return PoseEstimate(pin.SE3(R.copy(), sol.x.copy()), float(np.sqrt(np.mean(r**2))), len(points))
+
+
+__all__ = ["MIN_POINTS", "ObjectNotSeen", "PoseEstimate", "SurfaceModel", "fit_held_pose", "fit_resting_pose",
+           "observed_table_height", "segment"]

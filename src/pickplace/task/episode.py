@@ -17,7 +17,8 @@ Configs can be written as TOML, one table per part::
     [planner]
     time_budget_s = 0.5
 
-Tables: ``object``, ``scene``, ``machine``, ``control``, ``planner``, ``timing``, ``ik``, ``faults``; keys are
+Tables: ``object``, ``scene``, ``machine``, ``control``, ``planner``, ``timing``, ``ik``, ``faults``,
+``profile`` (with its ``camera`` and ``sensing`` sub-tables, :mod:`pickplace.task.profile`); keys are
 the dataclass fields (``[object]`` also takes ``library = "NAME"``; ``[scene]`` also takes the ``cube_*`` keys
 of earlier versions, see :data:`~pickplace.world.config.LEGACY_SCENE_KEYS`).
 """
@@ -46,6 +47,7 @@ from pickplace.robot.model import Robot, build
 from pickplace.task.faults import LEGACY_FAULT_KEYS, FaultConfig, apply_model_faults
 from pickplace.task.machine import MachineConfig, MachineOutcome, Phase, PickPlaceMachine, SegmentPlan
 from pickplace.task.observe import Observer
+from pickplace.task.profile import ProfileConfig
 from pickplace.task.telemetry import Telemetry, TelemetryRecorder
 from pickplace.world.config import SceneConfig, from_mapping
 
@@ -64,6 +66,8 @@ class EpisodeConfig:
         timing: TOPP-RA limits.
         ik: IK settings.
         faults: Faults injected on purpose (none by default).
+        profile: How the robot knows the world: ``ideal`` (the simulator's truth) or ``realistic`` (a depth
+            camera and the robot's own sensors), :mod:`pickplace.task.profile`.
     """
 
     scene: SceneConfig = field(default_factory=SceneConfig)
@@ -73,6 +77,7 @@ class EpisodeConfig:
     timing: TimingConfig = field(default_factory=TimingConfig.ur5e)
     ik: IKConfig = field(default_factory=IKConfig)
     faults: FaultConfig = field(default_factory=FaultConfig)
+    profile: ProfileConfig = field(default_factory=ProfileConfig)
 
     def __post_init__(self) -> None:
         for name, cls in _SECTIONS.items():
@@ -94,7 +99,9 @@ class EpisodeConfig:
         parts: dict[str, Any] = {"scene": SceneConfig.from_mapping(data.get("scene", {}),
                                                                    object_data=data.get("object"))}
         for name, section_cls in _SECTIONS.items():
-            if name != "scene":
+            if name == "profile":
+                parts[name] = ProfileConfig.from_mapping(data.get(name, {}))
+            elif name != "scene":
                 base = TimingConfig.ur5e() if section_cls is TimingConfig else None
                 aliases = LEGACY_FAULT_KEYS if section_cls is FaultConfig else None
                 parts[name] = from_mapping(section_cls, data.get(name, {}), name, base, aliases)
@@ -134,7 +141,7 @@ def read_toml(path: str | Path) -> dict[str, Any]:
 
 _SECTIONS: dict[str, type] = {"scene": SceneConfig, "machine": MachineConfig, "control": ControlConfig,
                               "planner": PlannerConfig, "timing": TimingConfig, "ik": IKConfig,
-                              "faults": FaultConfig}
+                              "faults": FaultConfig, "profile": ProfileConfig}
 
 
 def _plain(value: Any) -> Any:
@@ -205,6 +212,9 @@ class EpisodeResult:
         retries: Recoveries used.
         recoveries: One line per recovery: the failure caught and what was done.
         measured_mass_kg: The object's mass as the pads felt it while lifting (``lift_load_n / g``).
+        pose_estimates: ``(phase, what, position_error_m, yaw_error_rad)`` of every estimate of the object's
+            pose the robot took (``resting`` or ``in hand``), against the truth (which it never used): zero in
+            the ideal profile, the camera's error in the realistic one.
         config: The full config the episode ran with.
         telemetry: Per-step samples for plots and video (only when asked for; not serialized).
     """
@@ -251,6 +261,7 @@ class EpisodeResult:
     retries: int
     recoveries: tuple[str, ...]
     measured_mass_kg: float
+    pose_estimates: tuple[tuple[str, str, float, float], ...]
     config: EpisodeConfig
     telemetry: Telemetry | None = field(default=None, repr=False)
 
@@ -276,8 +287,9 @@ def run_episode(config: EpisodeConfig | None = None, seed: int = 0, *, record: b
         record: Keep per-step telemetry (for plots and video) in the result.
         frame_rate_hz: Video frames per simulated second kept when recording.
         observer: Makes the robot's observer from the models and the simulation state (what the robot knows
-            about the object, :mod:`pickplace.task.observe`); default: the simulator's truth (the ideal
-            profile). The result's figures are measured on the truth either way.
+            about the object, :mod:`pickplace.task.observe`); default: the config's profile's (the simulator's
+            truth in the ideal profile, the sensors in the realistic one). The result's figures are measured on
+            the truth either way.
 
     Returns:
         The :class:`EpisodeResult`; a failed pick or place is reported in it, not raised.
@@ -297,11 +309,20 @@ def run_episode(config: EpisodeConfig | None = None, seed: int = 0, *, record: b
     config = dataclasses.replace(config, planner=dataclasses.replace(config.planner, seed=seed))  # as it runs
     recorder = TelemetryRecorder(robot, frame_rate_hz, config.scene.goal_pos_m) if record else None
     noise_rng = np.random.default_rng([seed, 1])  # the sensor-noise stream, independent of the planner's
+    if observer is not None:
+        sensed = observer(robot, data)
+    elif config.profile.realistic:  # the camera's calibration and noise: a stream of their own
+        sensed = config.profile.observer(robot, data, np.random.default_rng([seed, 2]))
+    else:
+        sensed = None
     machine = PickPlaceMachine(robot, data, config.machine, config.control, config.planner, config.timing, config.ik,
-                               recorder, config.faults, noise_rng,
-                               observer(robot, data) if observer is not None else None)
+                               recorder, config.faults, noise_rng, sensed)
     t_sim0 = time.perf_counter()
-    out = machine.run()
+    try:
+        out = machine.run()
+    finally:
+        if sensed is not None and hasattr(sensed, "close"):
+            sensed.close()
     wall = time.perf_counter() - t0
     sim_wall = time.perf_counter() - t_sim0
     result = _result(out, config, seed, wall, machine.monitor.t / sim_wall if sim_wall > 0 else math.nan,
@@ -361,6 +382,7 @@ def _result(out: MachineOutcome, config: EpisodeConfig, seed: int, wall: float, 
         retries=len(out.recoveries),  # each recovery (regrasp, replan, payload correction) is one retry
         recoveries=tuple(out.recoveries),
         measured_mass_kg=out.lift_load_n / 9.81,
+        pose_estimates=tuple(out.estimates),
         config=config,
         telemetry=telemetry,
     )

@@ -14,7 +14,7 @@ import numpy as np
 from pickplace.errors import GraspFailed, PickPlaceError
 from pickplace.robot.model import Robot
 from pickplace.task.faults import FaultInjector
-from pickplace.task.observe import Observer
+from pickplace.task.observe import Observer, SimulatorObserver
 from pickplace.task.telemetry import TelemetryRecorder
 
 
@@ -45,15 +45,15 @@ class StepMonitor:
     Called as the control loops' hook. It advances the episode time, records telemetry, and raises as soon
     as something is wrong: :class:`UnexpectedContact`, :class:`~pickplace.errors.GraspFailed` (slip),
     :class:`ObjectMoved`, or whatever the trajectory predictor raises. The state machine switches the
-    checks on and off as the phases require (``allow_*``, ``holding``, ``watch_object_at``, ``predictor``).
+    checks on and off as the phases require (``allow_*``, ``holding``, ``watching``, ``predictor``).
 
     Args:
         robot: The models.
         recorder: Telemetry, or None.
         slip_tolerance_m: Largest allowed motion of the held object in the tcp frame (m).
         injector: Timed faults to apply after each step, or None.
-        observer: Where the slip and "the object moved" checks learn the object's position (what the robot
-            senses); default: the simulator. The contact checks referee the episode and read the simulator.
+        observer: What the slip, "object lost" and "the object moved" checks read (what the robot senses);
+            default: the simulator. The contact checks referee the episode and read the simulator.
     """
 
     def __init__(self, robot: Robot, recorder: TelemetryRecorder | None, slip_tolerance_m: float,
@@ -84,26 +84,20 @@ class StepMonitor:
         self.allow_object_table = True
         self.holding = False  # slip is checked
         self.tolerate_contacts = False  # backing off a collision: contacts are expected until clear
-        self.watch_object_at: np.ndarray | None = None  # where the resting object was observed (m)
+        self.watching = False  # whether the resting object must stay where it was observed
         self.watch_tolerance_m = 0.005
-        self._p_tcp_object0 = np.zeros(3)
         self.slip_max_m = 0.0
         self.slip_now_m = 0.0
 
     def start_holding(self, d: mujoco.MjData) -> None:
-        """Take the object's current position in the tcp frame as the reference for slip."""
-        self._p_tcp_object0 = self._p_tcp_object(d)
+        """Take the grip as it is now as the reference for slip."""
+        self._sense(d).start_holding()
         self.holding = True
 
-    def _object_position(self, d: mujoco.MjData) -> np.ndarray:
-        if self.observer is not None:
-            return self.observer.object_position()
-        return d.xpos[self.robot.handles.object_body]
-
-    def _p_tcp_object(self, d: mujoco.MjData) -> np.ndarray:
-        h = self.robot.handles
-        R = d.site_xmat[h.tcp_site].reshape(3, 3)
-        return R.T @ (self._object_position(d) - d.site_xpos[h.tcp_site])
+    def _sense(self, d: mujoco.MjData) -> Observer:
+        if self.observer is None:
+            self.observer = SimulatorObserver(self.robot, d)
+        return self.observer
 
     def allowed(self, a: int, b: int) -> bool:
         """Whether a contact between geom classes a and b is allowed now.
@@ -139,16 +133,20 @@ class StepMonitor:
                                 for a, b in bad})
                 raise UnexpectedContact(pairs, self.t)  # type: ignore[arg-type]
         if self.holding:
-            slip = float(np.linalg.norm(self._p_tcp_object(d) - self._p_tcp_object0))
+            sense = self._sense(d)
+            slip = sense.slip_m()
             self.slip_now_m = slip
             self.slip_max_m = max(self.slip_max_m, slip)
             if slip > self.slip_tolerance_m:
                 raise GraspFailed(f"the {self.name} slipped {slip * 1e3:.2f} mm in the grip at t = {self.t:.3f} s "
                                   f"(tolerance {self.slip_tolerance_m * 1e3:.2f} mm)")
-        if self.watch_object_at is not None:
-            moved = float(np.linalg.norm(self._object_position(d) - self.watch_object_at))
+            lost = sense.grip_lost()
+            if lost is not None:
+                raise GraspFailed(f"{lost} at t = {self.t:.3f} s: it is no longer held")
+        if self.watching:
+            moved = self._sense(d).moved_m()
             if moved > self.watch_tolerance_m:
-                self.watch_object_at = None
+                self.watching = False
                 raise ObjectMoved(f"the {self.name} moved {moved * 1e3:.1f} mm from where it was observed "
                                   f"(t = {self.t:.3f} s)")
         self._steps += 1

@@ -2,9 +2,9 @@
 
 A skill never reads the simulator's object state itself. It asks an :class:`Observer` where the object is
 (resting, or in the hand), how fast it moves, and what the pads feel. :class:`SimulatorObserver` answers from
-the simulation, exactly and at once: the ideal profile, which isolates the algorithms' own error. A realistic
-observer answers from sensors (a depth camera, the gripper, a wrist force/torque sensor) and has no path to
-the simulator's object state.
+the simulation, exactly and at once: the ideal profile, which isolates the algorithms' own error.
+:class:`SensorObserver` answers from sensors (a depth camera, the gripper, a wrist force/torque sensor) and
+has no path to the simulator's object state: the realistic profile.
 
 The code that *measures* an episode (the place error in the result, the check 1 s after the release) reads the
 truth on purpose; it uses a :class:`SimulatorObserver` of its own, kept apart from the robot's.
@@ -12,46 +12,102 @@ truth on purpose; it uses a :class:`SimulatorObserver` of its own, kept apart fr
 
 from __future__ import annotations
 
+import logging
+import math
+from dataclasses import dataclass
 from typing import Protocol
 
 import mujoco
 import numpy as np
 import pinocchio as pin
 
+from pickplace.perception.camera import CameraConfig
+from pickplace.perception.pose import ObjectNotSeen
 from pickplace.robot import gripper
 from pickplace.robot.model import Robot
+from pickplace.world.config import check_range
 from pickplace.world.contact import Contact
+
+log = logging.getLogger(__name__)
 
 
 class Observer(Protocol):
-    """Everything a skill may know about the object and the grip (SI units, world frame)."""
+    """Everything a skill may know about the object and the grip (SI units, world frame).
+
+    The skill tells the observer what happens (:meth:`observe` a resting object, :meth:`closing`,
+    :meth:`grasped`, :meth:`look_in_hand`, :meth:`released`); between those it asks for the robot's current
+    belief (:meth:`object_pose`) and, at every step, for what its sensors say (:meth:`moved_m`,
+    :meth:`slip_m`, :meth:`grip_lost`, :meth:`load_sample`).
+    """
+
+    def observe(self, near: pin.SE3 | None = None) -> pin.SE3:
+        """Look at the resting object (anywhere on the table, or near ``near``, where the hand may be too) and
+        return its pose."""
+        ...
 
     def object_pose(self) -> pin.SE3:
-        """The object's pose, resting or held."""
+        """The robot's belief of the object's pose, resting or held."""
         ...
 
     def object_position(self) -> np.ndarray:
-        """The object's origin (3,) (m): cheaper than :meth:`object_pose`, for checks at every step."""
+        """The object's origin (3,) (m) as believed: cheaper than :meth:`object_pose`, for every step."""
+        ...
+
+    def moved_m(self) -> float:
+        """How far the resting object has moved since it was last observed (m), as sensed now."""
         ...
 
     def object_velocity(self) -> np.ndarray:
-        """The object's linear and angular velocity (6,) (m/s, rad/s)."""
+        """The resting (or falling) object's linear and angular velocity (6,) (m/s, rad/s), as sensed."""
         ...
 
-    def object_vertical_acceleration(self) -> float:
-        """The object's vertical acceleration (m/s^2), for weighing it."""
+    def closing(self) -> None:
+        """The gripper starts to close on the object (a wrist sensor is zeroed now)."""
+        ...
+
+    def grasped(self, T_tcp_object_model: pin.SE3) -> None:
+        """The pads hold the object; ``T_tcp_object_model`` is where the grasp model puts it in the hand."""
+        ...
+
+    def look_in_hand(self) -> None:
+        """Measure the held object's pose in the hand again."""
+        ...
+
+    def released(self) -> None:
+        """The gripper let go of the object."""
         ...
 
     def pad_forces(self) -> np.ndarray:
         """The normal force of each pad on the object (2,) (N)."""
         ...
 
-    def pad_load(self) -> tuple[np.ndarray, np.ndarray]:
-        """The pads' normal forces (2,) (N) and their total force on the object (3,) (N)."""
-        ...
-
     def pad_contacts(self) -> list[Contact]:
         """The pad-object contacts (points, normals, friction), for the force-closure test."""
+        ...
+
+    def load_sample(self) -> tuple[float, float, float]:
+        """While lifting: the pads' total normal force (N), the vertical force the hand carries the object with
+        (N), and ``g`` plus the object's vertical acceleration (m/s^2): the mass is the ratio of the sums."""
+        ...
+
+    def start_holding(self) -> None:
+        """Take the grip as it is now as the reference for :meth:`slip_m`."""
+        ...
+
+    def slip_m(self) -> float:
+        """How far the object has moved in the grip since :meth:`start_holding` (m), as sensed."""
+        ...
+
+    def expect_load(self, mass_kg: float | None) -> None:
+        """The hand carries an object of this mass off the table from now on (None: not any more)."""
+        ...
+
+    def grip_lost(self) -> str | None:
+        """Why the sensors say the object is no longer held, or None."""
+        ...
+
+    def close(self) -> None:
+        """Release the sensors' resources."""
         ...
 
 
@@ -68,6 +124,15 @@ class SimulatorObserver:
         h = robot.handles
         self._body = h.object_body
         self._dof = h.object_dof
+        self._tcp = h.tcp_site
+        self._observed_at = np.zeros(3)
+        self._p_tcp_object0 = np.zeros(3)
+
+    def observe(self, near: pin.SE3 | None = None) -> pin.SE3:
+        """The object's pose (exact, wherever it is)."""
+        T = self.object_pose()
+        self._observed_at = T.translation.copy()
+        return T
 
     def object_pose(self) -> pin.SE3:
         """The object's pose (its body frame)."""
@@ -77,25 +142,308 @@ class SimulatorObserver:
         """The object's origin (3,) (m)."""
         return self.d.xpos[self._body].copy()
 
+    def moved_m(self) -> float:
+        """Distance of the object's origin from where it was observed (m)."""
+        return float(np.linalg.norm(self.object_position() - self._observed_at))
+
     def object_velocity(self) -> np.ndarray:
         """The free joint's velocity (6,): linear (world) then angular (m/s, rad/s)."""
         return self.d.qvel[self._dof:self._dof + 6].copy()
 
-    def object_vertical_acceleration(self) -> float:
-        """The free joint's world z acceleration (m/s^2)."""
-        return float(self.d.qacc[self._dof + 2])
+    def closing(self) -> None:
+        """Nothing to zero."""
+
+    def grasped(self, T_tcp_object_model: pin.SE3) -> None:
+        """Nothing to do: the held object's pose is read from the simulation."""
+
+    def look_in_hand(self) -> None:
+        """Nothing to do: the held object's pose is read from the simulation."""
+
+    def released(self) -> None:
+        """Nothing to do."""
 
     def pad_forces(self) -> np.ndarray:
         """Normal force of each pad (2,) (N)."""
         return gripper.pad_forces(self.robot, self.d)
 
-    def pad_load(self) -> tuple[np.ndarray, np.ndarray]:
-        """The pads' normal forces (2,) and their total force on the object (3,) (N)."""
-        return gripper.pad_load(self.robot, self.d)
-
     def pad_contacts(self) -> list[Contact]:
         """The pad-object contacts as the simulation has them."""
         return gripper.pad_contacts(self.robot, self.d)
 
+    def load_sample(self) -> tuple[float, float, float]:
+        """The pads' normal forces and vertical force on the object, and g plus its vertical acceleration."""
+        normal, f = gripper.pad_load(self.robot, self.d)
+        g = float(-self.robot.mj.opt.gravity[2])
+        return float(normal.sum()), float(f[2]), g + float(self.d.qacc[self._dof + 2])
 
-__all__ = ["Observer", "SimulatorObserver"]
+    def _p_tcp_object(self) -> np.ndarray:
+        R = self.d.site_xmat[self._tcp].reshape(3, 3)
+        return R.T @ (self.object_position() - self.d.site_xpos[self._tcp])
+
+    def start_holding(self) -> None:
+        """The object's position in the tcp frame now is the reference."""
+        self._p_tcp_object0 = self._p_tcp_object()
+
+    def slip_m(self) -> float:
+        """Motion of the object's origin in the tcp frame since :meth:`start_holding` (m)."""
+        return float(np.linalg.norm(self._p_tcp_object() - self._p_tcp_object0))
+
+    def expect_load(self, mass_kg: float | None) -> None:
+        """Nothing to do: slip is measured on the object itself."""
+
+    def grip_lost(self) -> str | None:
+        """Never: a lost grip shows as slip."""
+        return None
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+@dataclass(frozen=True)
+class SensingConfig:
+    """The realistic robot's sensors besides its camera, and how often it looks (SI units).
+
+    Attributes:
+        wrist_force_noise_n: RMS noise of each force reading of the wrist force/torque sensor (N). Default: a
+            Robotiq FT 300-S, a common wrist sensor for UR arms (datasheet: "signal noise 0.1 N" in Fx, Fy,
+            Fz). Its readings are taken at every physics step here (the sensor streams at 100 Hz): the
+            weighing averages them, so the noise matters less than its level says.
+        load_filter_s: Time constant of the low-pass on the wrist force for the "object lost" check (s).
+        load_lost_fraction: The object counts as lost when the wrist carries less than this fraction of its
+            weight (times ``g`` plus the hand's vertical acceleration).
+        watch_period_s: Period of the camera's re-checks of a resting object (moved? at rest?) (s): a depth
+            camera streams at 30-90 Hz, but each re-check renders, segments and fits (tens of ms of
+            processing), so the robot re-checks at 10 Hz.
+        rest_window_s: The object's velocity is the motion between two re-checks at least this far apart (s):
+            over a shorter time the fit's sub-millimetre scatter would read as motion.
+    """
+
+    wrist_force_noise_n: float = 0.1
+    load_filter_s: float = 0.02
+    load_lost_fraction: float = 0.5
+    watch_period_s: float = 0.1
+    rest_window_s: float = 0.2
+
+    def __post_init__(self) -> None:
+        check_range("sensing.wrist_force_noise_n", self.wrist_force_noise_n, 0.0, 10.0, unit="N")
+        check_range("sensing.load_filter_s", self.load_filter_s, 0.0, 1.0, unit="s")
+        check_range("sensing.load_lost_fraction", self.load_lost_fraction, 0.0, 1.0, lo_open=True)
+        check_range("sensing.watch_period_s", self.watch_period_s, 0.001, 1.0, unit="s")
+        check_range("sensing.rest_window_s", self.rest_window_s, 0.01, 2.0, unit="s")
+
+
+class SensorObserver:
+    """The realistic observer: what a robot with a depth camera, a gripper and a wrist force/torque sensor
+    knows. It has no path to the simulator's object state, contact forces or object accelerations.
+
+    * the resting object's pose: the camera (:class:`~pickplace.perception.view.TableCamera`), when the skill
+      observes; a camera re-check every ``watch_period_s`` while it watches (moved? at rest?);
+    * the held object's pose: the tcp (the arm's kinematics) times the object's pose in the hand, which is the
+      grasp model's when the pads close (the pads centre it along their closing axis; along their faces it sits
+      where the camera saw it) and the camera's after :meth:`look_in_hand`;
+    * the pads' forces: the gripper's own (its actuator's force, shared by the two coupled fingers), the
+      contacts of the force-closure test: the grasp model's (one soft contact per pad face, the object's
+      nominal friction);
+    * slip: the fingers closing further than where they settled; a lost object: the wrist no longer carrying
+      its weight; its weight: the wrist's vertical force (zeroed as the gripper closes) less the hand's own
+      inertia, over ``g`` plus the hand's vertical acceleration (the tool's accelerometer).
+
+    Args:
+        robot: The models: the robot's own kinematics and geometry, the object's model, the camera's render.
+        data: The simulation: rendered by the camera; the arm's and the gripper's state and the wrist's force
+            read as their sensors report them.
+        camera: The camera as calibrated (its real pose is drawn from its calibration error).
+        sensing: The other sensors.
+        rng: Seeded generator of the calibration error and the sensors' noise.
+    """
+
+    def __init__(self, robot: Robot, data: mujoco.MjData, camera: CameraConfig, sensing: SensingConfig,
+                 rng: np.random.Generator) -> None:
+        from pickplace.perception.view import TableCamera
+
+        self.robot, self.d, self.sensing, self.rng = robot, data, sensing, rng
+        self.camera = TableCamera(robot, camera, rng)
+        m, h = robot.mj, robot.handles
+        self._tcp = h.tcp_site
+        self._hand = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "gripper_base")
+        self._hand_mass = float(m.body_subtreemass[self._hand])
+        self._g = float(-m.opt.gravity[2])
+        self._belief = pin.SE3.Identity()  # where the robot believes the resting object is
+        self._observed = pin.SE3.Identity()  # where it was when last observed
+        self._seen = pin.SE3.Identity()  # where the latest re-check saw it
+        self._T_tcp_object: pin.SE3 | None = None
+        self._checks: list[tuple[float, np.ndarray]] = []  # (time, position) of the camera's re-checks
+        self._moved = 0.0
+        self._finger0 = 0.0
+        self._tare = 0.0
+        self._mass: float | None = None
+        self._load = math.nan
+        self._t_load = math.nan
+        self.observations = 0
+
+    # -- the camera ------------------------------------------------------------------------------------- #
+
+    def observe(self, near: pin.SE3 | None = None) -> pin.SE3:
+        """The resting object's pose from a camera image (:class:`ObjectNotSeen` if it is not seen); measured
+        against the hand when the hand is next to it (``near`` given and within reach of the camera's view of
+        the hand)."""
+        close = near is not None and float(np.linalg.norm(self._tcp_pose().translation - near.translation)) < 0.1
+        est = self.camera.locate(self.d, near=near, from_hand=close)
+        self.observations += 1
+        self._belief = self._observed = self._seen = est.T_world_object
+        self._T_tcp_object = None
+        self._checks = [(float(self.d.time), est.T_world_object.translation.copy())]
+        self._moved = 0.0
+        log.debug("observed the %s at (%.4f, %.4f) m, residual %.2f mm, %d points", self.robot.scene.object.name,
+                  *est.T_world_object.translation[:2], est.residual_m * 1e3, est.points)
+        return est.T_world_object
+
+    def _tcp_pose(self) -> pin.SE3:
+        return pin.SE3(self.d.site_xmat[self._tcp].reshape(3, 3).copy(), self.d.site_xpos[self._tcp].copy())
+
+    def object_pose(self) -> pin.SE3:
+        """The held object: the tcp times its pose in the hand; the resting object: where it was last seen."""
+        if self._T_tcp_object is not None:
+            return self._tcp_pose() * self._T_tcp_object
+        return self._belief
+
+    def object_position(self) -> np.ndarray:
+        """The believed pose's origin (3,) (m)."""
+        return self.object_pose().translation.copy()
+
+    def _recheck(self) -> None:
+        """A camera re-check of the resting object, if the last one is ``watch_period_s`` old."""
+        t = float(self.d.time)
+        if self._checks and t - self._checks[-1][0] < self.sensing.watch_period_s - 1e-9:
+            return
+        try:
+            est = self.camera.recheck(self.d, self._seen)
+        except ObjectNotSeen:  # not where it was: look over the whole table
+            try:
+                est = self.camera.locate(self.d)
+            except ObjectNotSeen:
+                self._checks = []
+                self._moved = math.inf
+                return
+        p = est.T_world_object.translation.copy()
+        self._seen = est.T_world_object
+        self._checks.append((t, p))
+        self._moved = float(np.linalg.norm(p - self._observed.translation))
+
+    def moved_m(self) -> float:
+        """Distance of the camera's latest re-check from where the object was observed (m)."""
+        self._recheck()
+        return self._moved
+
+    def object_velocity(self) -> np.ndarray:
+        """The motion between the latest re-check and one at least ``rest_window_s`` before it, over the time
+        between them (linear only; inf while there is no such pair yet)."""
+        self._recheck()
+        t, p = self._checks[-1] if self._checks else (math.nan, None)
+        older = [(tk, pk) for tk, pk in self._checks if t - tk >= self.sensing.rest_window_s - 1e-9]
+        if p is None or not older:
+            return np.full(6, math.inf)
+        tk, pk = older[-1]
+        return np.concatenate([(p - pk) / (t - tk), np.zeros(3)])
+
+    def look_in_hand(self) -> None:
+        """The held object's position in the hand from a camera image (:class:`ObjectNotSeen` if not seen)."""
+        est = self.camera.in_hand(self.d, self.object_pose())
+        self.observations += 1
+        self._T_tcp_object = self._tcp_pose().actInv(est.T_world_object)
+
+    # -- the gripper and the wrist ---------------------------------------------------------------------- #
+
+    def closing(self) -> None:
+        """Zero the wrist sensor (the gripper empty, at rest above the object)."""
+        self._tare = self._wrist_force_z()
+
+    def grasped(self, T_tcp_object_model: pin.SE3) -> None:
+        """In the hand where it was seen, centred between the pads along their closing axis (tcp y)."""
+        T = self._tcp_pose().actInv(self._belief)
+        p = T.translation.copy()
+        p[1] = T_tcp_object_model.translation[1]
+        self._T_tcp_object = pin.SE3(T.rotation, p)
+
+    def released(self) -> None:
+        """The object stays where it was believed to be when the pads opened."""
+        self._belief = self._seen = self.object_pose()
+        self._T_tcp_object = None
+        self._mass = None
+        self._checks = []
+
+    def pad_forces(self) -> np.ndarray:
+        """The gripper's force (its actuator's), half on each pad; 0 when it pulls them open (N)."""
+        f = float(self.d.actuator_force[self.robot.handles.gripper_actuator])
+        return np.full(2, max(0.0, f) / 2.0)
+
+    def pad_contacts(self) -> list[Contact]:
+        """One soft contact at the middle of each pad's face, on the object (the grasp model's)."""
+        geom = gripper.GripperGeometry.measure(self.robot)
+        obj = self.robot.scene.object
+        tcp = self._tcp_pose()
+        face = geom.open_inner_face_y_m - gripper.finger_travel(self.robot, self.d)
+        centre = np.array(geom.pad_box_m[:3])
+        out = []
+        for side in (1.0, -1.0):
+            local = np.array([centre[0], side * face, centre[2]])
+            out.append(Contact(tcp.act(local), tcp.rotation @ np.array([0.0, -side, 0.0]), obj.friction,
+                               obj.torsional_friction_m))
+        return out
+
+    def _wrist_force_z(self) -> float:
+        """The wrist sensor's vertical force on the hand (N), with the sensor's noise."""
+        mujoco.mj_rnePostConstraint(self.robot.mj, self.d)
+        f = float(self.d.cfrc_int[self._hand, 5])  # the wrist's force on the hand (world frame)
+        return f + float(self.rng.normal(0.0, self.sensing.wrist_force_noise_n))
+
+    def _hand_acceleration_z(self) -> float:
+        """The tool's accelerometer: the hand's vertical acceleration (m/s^2)."""
+        acc = np.zeros(6)
+        mujoco.mj_objectAcceleration(self.robot.mj, self.d, mujoco.mjtObj.mjOBJ_BODY, self._hand, acc, 0)
+        return float(acc[5]) - self._g  # it reads the specific force; less gravity's: the acceleration
+
+    def load_sample(self) -> tuple[float, float, float]:
+        """The gripper's force, the wrist's vertical force less its zero and the hand's own inertia, and ``g``
+        plus the hand's vertical acceleration."""
+        a = self._hand_acceleration_z()
+        load = self._wrist_force_z() - self._tare - self._hand_mass * a
+        return float(self.pad_forces().sum()), load, self._g + a
+
+    def start_holding(self) -> None:
+        """The fingers' travel now is the reference."""
+        self._finger0 = gripper.finger_travel(self.robot, self.d)
+
+    def slip_m(self) -> float:
+        """How much further the fingers have closed (or opened) since the grip settled (m)."""
+        return abs(gripper.finger_travel(self.robot, self.d) - self._finger0)
+
+    def expect_load(self, mass_kg: float | None) -> None:
+        """Watch the wrist for this weight from now on."""
+        self._mass = mass_kg
+        self._load = math.nan
+
+    def grip_lost(self) -> str | None:
+        """The wrist carries less than ``load_lost_fraction`` of the weight (low-passed), or None."""
+        if self._mass is None:
+            return None
+        _, load, g_plus_a = self.load_sample()
+        t = float(self.d.time)
+        if math.isnan(self._load):
+            self._load, self._t_load = load, t
+        else:
+            alpha = min(1.0, (t - self._t_load) / self.sensing.load_filter_s) if self.sensing.load_filter_s else 1.0
+            self._load += alpha * (load - self._load)
+            self._t_load = t
+        expected = self._mass * g_plus_a
+        if self._load < self.sensing.load_lost_fraction * expected:
+            return (f"the wrist carries {self._load:.2f} N of the {self.robot.scene.object.name}'s "
+                    f"{expected:.2f} N (less than {self.sensing.load_lost_fraction:.0%})")
+        return None
+
+    def close(self) -> None:
+        """Release the camera's OpenGL context."""
+        self.camera.close()
+
+
+__all__ = ["Observer", "SensingConfig", "SensorObserver", "SimulatorObserver"]

@@ -196,6 +196,8 @@ class MachineOutcome:
         recoveries: One line per recovery: the failure that was caught and what was done about it.
         timeline: ``(phase, start_s, duration_s, outcome)`` of every phase run, in order; outcome is ``ok``,
             ``recovered`` (it failed and a recovery followed) or ``failed``. Phases repeat after a recovery.
+        estimates: ``(phase, what, position_error_m, yaw_error_rad)`` of every estimate of the object's pose the
+            robot took (``resting`` or ``in hand``), against the truth (which the robot never used).
     """
 
     phase: Phase = Phase.IDLE
@@ -228,6 +230,7 @@ class MachineOutcome:
     wall_plan_time_s: float = 0.0
     recoveries: list[str] = field(default_factory=list)
     timeline: list[tuple[str, float, float, str]] = field(default_factory=list)
+    estimates: list[tuple[str, str, float, float]] = field(default_factory=list)
 
 
 __all__ = ["CollisionPredicted", "MachineConfig", "MachineOutcome", "Phase", "PhaseFailed", "SegmentPlan"]

@@ -84,14 +84,29 @@ class PickPlaceSkill:
         """Where the robot believes the object is (its observer's estimate)."""
         return self.observer.object_pose()
 
+    def _observe(self, near: pin.SE3 | None = None) -> pin.SE3:
+        """Look at the resting object (the observer's estimate), and measure the estimate against the truth
+        for the record (the robot never sees that comparison)."""
+        obj = self.observer.observe(near)
+        self._note_estimate("resting")
+        return obj
+
+    def _note_estimate(self, what: str) -> None:
+        """Record how far the observer's belief is from the truth (position (m) and yaw (rad))."""
+        believed, truth = self.observer.object_pose(), self._truth.object_pose()
+        period = self.robot.scene.object.yaw_period_rad
+        self.out.estimates.append((self.monitor.phase, what,
+                                   float(np.linalg.norm(believed.translation - truth.translation)),
+                                   yaw_error(believed.rotation, truth.rotation, period)))
+
     def _idle(self) -> Phase:
         """Observe the object, solve every target (before the arm moves: unreachable goals fail here)."""
         t0 = time.perf_counter()
         mujoco.mj_forward(self.robot.mj, self.d)
-        obj = self._object_pose()
+        obj = self._observe()
         configs = self._solve_grasps(obj)
         self.robot.scene.check_goal_on_table()
-        self.monitor.watch_object_at = obj.translation.copy()
+        self.monitor.watching = True
         self._adopt(configs)
         self.arm.note_ik(*configs.results())
         self.out.wall_plan_time_s += time.perf_counter() - t0
@@ -141,8 +156,9 @@ class PickPlaceSkill:
 
     def _close(self) -> Phase:
         robot, d, cfg = self.robot, self.d, self.cfg
-        self.monitor.watch_object_at = None  # the pads move it now
+        self.monitor.watching = False  # the pads move it now
         self.monitor.allow_hand_object = True
+        self.observer.closing()
         gripper.command(robot, d, True)
 
         def gripping() -> bool:
@@ -157,6 +173,8 @@ class PickPlaceSkill:
                               f"{cfg.close_timeout_s:g} s: "
                               f"pad forces {forces[0]:.1f} / {forces[1]:.1f} N (need {cfg.min_pad_force_n:g} "
                               f"N each), finger travel {travel * 1e3:.1f} mm")
+        assert self.configs is not None
+        self.observer.grasped(self.configs.targets.T_tcp_object)
         contacts = self.observer.pad_contacts()
         obj = self._object_pose()
         fc = analyze_grasp(contacts, obj.act(mass_properties(robot.scene.object).com_m),
@@ -194,10 +212,10 @@ class PickPlaceSkill:
             if monitor.allow_object_table and observer.object_position()[2] > z_object0 + 0.003:
                 monitor.allow_object_table = False  # airborne: touching the table again is a failure
             if not monitor.allow_object_table:  # airborne: only the pads (and gravity) act on the object
-                normal, f = observer.pad_load()
-                forces.append(float(normal.sum()))
-                f_z.append(float(f[2]))
-                g_plus_a.append(g + observer.object_vertical_acceleration())
+                normal, load, g_plus_a_now = observer.load_sample()
+                forces.append(normal)
+                f_z.append(load)
+                g_plus_a.append(g_plus_a_now)
 
         def measured_mass() -> float:
             return float(np.sum(f_z) / np.sum(g_plus_a)) if f_z else math.nan
@@ -231,6 +249,8 @@ class PickPlaceSkill:
             raise PhaseFailed(Phase.LIFT, f"the tcp stopped {rec.final_height_error_m * 1e3:.2f} mm from the lift "
                                           f"height (the {self.robot.scene.object.name} weighed {mass:.3f} kg)")
         self.monitor.allow_object_table = False
+        # airborne: the hand carries its weight (as weighed, if it could be)
+        self.observer.expect_load(mass if math.isfinite(mass) else self.arm.payload.mass_kg)
         rise = float(self._object_pose().translation[2]) - z_object0
         lifted = target_z - float(self.configs.targets.grasp.translation[2])
         if abs(rise - lifted) > self.cfg.slip_tolerance_m:
@@ -271,6 +291,8 @@ class PickPlaceSkill:
         """Re-aim from the object's pose in the hand *now* (it shifts a little in transit), then set it down."""
         assert self.configs is not None
         t0 = time.perf_counter()
+        self.observer.look_in_hand()
+        self._note_estimate("in hand")
         tcp, obj = self.arm.tcp_pose(), self._object_pose()
         preplace, place = place_targets(self.robot.scene, tcp, obj, self.configs.targets.R_world_object_goal,
                                         self.configs.targets.preplace_height_m)
@@ -288,6 +310,7 @@ class PickPlaceSkill:
         def hook(d: mujoco.MjData) -> None:
             if observer.object_position()[2] < z_table_touch:
                 monitor.allow_object_table = True  # setting it down
+                observer.expect_load(None)  # the table takes its weight
             monitor(d)
 
         self.arm.vertical(Phase.DESCEND_PLACE, float(place.translation[2]), hook)
@@ -300,7 +323,9 @@ class PickPlaceSkill:
         self.monitor.holding = False
         self.monitor.allow_object_table = True
         self.arm.payload = None
+        observer.expect_load(None)
         gripper.command(robot, d, False)
+        observer.released()
         self._release_t = self.monitor.t
         geom = gripper.GripperGeometry.measure(robot)
         clear_travel = geom.contact_travel_m(self.configs.targets.width_m) - cfg.release_clearance_m
@@ -321,7 +346,7 @@ class PickPlaceSkill:
                                              f"{speed() * 1e3:.1f} mm/s)")
         self.monitor.allow_hand_object = False
         self._measure_place()
-        xy, z, yaw = self._place_errors(observer.object_pose())
+        xy, z, yaw = self._place_errors(self._observe(near=observer.object_pose()))
         if xy > cfg.place_tolerance_xy_m:
             raise PhaseFailed(Phase.RELEASE, f"the {robot.scene.object.name} rests "
                                              f"{xy * 1e3:.2f} mm from the goal "
@@ -439,12 +464,14 @@ class PickPlaceSkill:
         robot, d, cfg = self.robot, self.d, self.cfg
         scene = robot.scene
         self.monitor.holding = False
-        self.monitor.watch_object_at = None
+        self.monitor.watching = False
         self.monitor.allow_hand_object = True
         self.monitor.allow_object_table = True
         self.arm.stop()  # with the grip as it is: opening at speed would throw whatever is still held
         self.arm.payload = None
+        self.observer.expect_load(None)
         gripper.command(robot, d, False)
+        self.observer.released()
         self.arm.hold(self.arm.q, 0.15)
         z_safe = scene.table_height_m + float(np.max(scene.object.geometry().extent_m)) + CLEARANCE_M
         if float(self.arm.tcp_pose().translation[2]) < z_safe:
@@ -460,7 +487,7 @@ class PickPlaceSkill:
             raise PhaseFailed(Phase.RECOVER, f"the {name} did not come to rest within "
                                              f"{cfg.object_settle_timeout_s:.1f} s")
         self.monitor.allow_hand_object = False
-        obj = self._object_pose()
+        obj = self._observe()
         lowest = float(np.min(scene.object.geometry().vertices @ obj.rotation[2]) + obj.translation[2])
         where = f"({obj.translation[0]:.3f}, {obj.translation[1]:.3f}) m"
         if lowest < scene.table_height_m - 0.01:
@@ -477,7 +504,7 @@ class PickPlaceSkill:
             raise PhaseFailed(Phase.RECOVER, f"the {name} now rests at {where}, out of reach: {exc}") from exc
         finally:
             self.out.wall_plan_time_s += time.perf_counter() - t0
-        self.monitor.watch_object_at = obj.translation.copy()
+        self.monitor.watching = True
         log.info("recovery: the %s was observed again at (%.4f, %.4f) m, yaw %.3f rad", name, *obj.translation[:2],
                  object_yaw(obj.rotation))
         return Phase.PLAN_APPROACH

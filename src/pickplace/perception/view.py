@@ -1,0 +1,262 @@
+"""The robot's view of the table: one fixed depth camera, used the way a robot can use it.
+
+Where the camera really is differs from where the robot believes it is by a calibration error drawn once per
+episode (:meth:`~pickplace.perception.camera.CameraConfig.drawn`): every image is rendered from the real pose,
+with the sensor's noise (:func:`~pickplace.perception.camera.sensor_depth`), and back-projected with the
+believed one. The robot leaves out what it knows is there: its own links at their configuration and the
+obstacles of its map, rendered from where it believes the camera is and widened by :data:`MASK_MARGIN_PX`
+pixels for the calibration error. Then:
+
+* :meth:`TableCamera.locate`: the resting object's pose anywhere on the table, or near a point: the table top
+  as seen, the object's points above it (:func:`~pickplace.perception.pose.segment`) and the model fit
+  (:func:`~pickplace.perception.pose.fit_resting_pose`). Too few points is
+  :class:`~pickplace.perception.pose.ObjectNotSeen`.
+* :meth:`TableCamera.recheck`: one quick fit from a pose known to be close: where the resting object is now
+  (has it moved? has it come to rest?). With ``from_hand``, :meth:`TableCamera.locate` measures a resting
+  object against the hand next to it, as below (the check after the release).
+* :meth:`TableCamera.in_hand`: the held object's position relative to the hand. In the same image the
+  gripper's points are matched to where the robot's model of itself puts them (the image shift and depth
+  offset that map one onto the other, :func:`register_offset`): that is the calibration error's displacement
+  of the points there, and the object's points, corrected by it, are fitted
+  (:func:`~pickplace.perception.pose.fit_held_pose`). The place needs where the object sits in the hand; the
+  camera's calibration error cancels out of that to first order (what is left is its rotation error times the
+  few centimetres between the gripper and the object).
+
+The only simulator state read here is what a sensor reads: the rendered images. The robot's own configuration
+(for its self-filter and its model of itself) is the robot's knowledge, not the object's.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+from scipy import ndimage
+
+from pickplace.perception.camera import CameraConfig, DepthCamera, point_cloud, sensor_depth
+from pickplace.perception.pose import (
+    ObjectNotSeen,
+    PoseEstimate,
+    SurfaceModel,
+    fit_held_pose,
+    fit_resting_pose,
+    observed_table_height,
+    segment,
+)
+from pickplace.robot.model import INTRUDER, Robot
+
+log = logging.getLogger(__name__)
+
+#: Pixels by which the robot's self-filter is widened (its links are rendered from the calibrated camera pose,
+#: which is off by the calibration error: ~0.3 deg, 4 px at 848 x 480).
+MASK_MARGIN_PX = 4
+#: Radius around the tcp within which the gripper's points measure the calibration offset (m).
+HAND_RADIUS_M = 0.15
+#: Search radius beyond the object's bounding sphere around where it should be (m).
+SEARCH_MARGIN_M = 0.03
+
+
+def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray, config: CameraConfig,
+                    max_shift_px: int = 10) -> tuple[np.ndarray, np.ndarray]:
+    """How far the scene the sensor sees is displaced from the robot's model of it, around ``region``.
+
+    Over the model's pixels in ``region`` (the robot's own, near the hand), finds the image shift (du, dv) (px)
+    and depth offset dz (m) that map the model's depth image onto the measured one: the shift minimising the
+    median absolute residual (dz the median residual), searched over whole pixels, then refined to a tenth of
+    a pixel on the bilinearly interpolated measured image. The silhouette's edges against the
+    background fix the shift; its surfaces fix the depth. Locally, that is a displacement of the points by
+    ``R_world_camera @ (du z / f, dv z / f, dz)`` (z the region's median depth, f the focal length).
+
+    Args:
+        measured: The sensor's depth image (H, W) (m; 0 where missing).
+        model: The robot's model of the scene rendered where it believes the camera is (H, W) (m).
+        region: Pixels to match (H, W) (bool): the model's own pixels near the hand.
+        config: The camera as calibrated.
+        max_shift_px: Largest shift searched (px).
+
+    Returns:
+        ``(offset, shift)``: the displacement (3,) (m, world) and the image shift (du, dv) (px).
+
+    Raises:
+        ObjectNotSeen: fewer than 30 pixels in the region.
+    """
+    v, u = np.nonzero(region)
+    if len(v) < 30:
+        raise ObjectNotSeen(f"the camera sees {len(v)} pixels of the gripper (at least 30 needed to measure the "
+                            "object against it)")
+    h, w = measured.shape
+    z_model = model[v, u]
+
+    def residuals_at(du: float, dv: float) -> tuple[np.ndarray, np.ndarray]:
+        uu, vv = u + du, v + dv
+        inside = (uu >= 0) & (uu <= w - 1) & (vv >= 0) & (vv <= h - 1)
+        if float(du).is_integer() and float(dv).is_integer():
+            z = measured[np.clip(vv, 0, h - 1).astype(int), np.clip(uu, 0, w - 1).astype(int)]
+        else:
+            z = ndimage.map_coordinates(measured, [np.clip(vv, 0, h - 1), np.clip(uu, 0, w - 1)], order=1)
+        ok = inside & (z > 0.0)
+        return z - z_model, ok
+
+    def cost(du: float, dv: float) -> tuple[float, float]:
+        r, ok = residuals_at(du, dv)
+        if ok.sum() < len(v) // 2:
+            return np.inf, 0.0
+        dz = float(np.median(r[ok]))
+        return float(np.median(np.abs(r[ok] - dz))), dz
+
+    # coarse to fine: whole pixels over the search range, then half and tenth pixels around the best
+    best = (np.inf, 0.0, 0.0, 0.0)
+    for step, span in ((1.0, max_shift_px), (0.5, 1), (0.1, 5)):
+        u0, v0 = best[1], best[2]
+        for dv in v0 + step * np.arange(-span, span + 1):
+            for du in u0 + step * np.arange(-span, span + 1):
+                c, dz = cost(float(du), float(dv))
+                if c < best[0]:
+                    best = (c, float(du), float(dv), dz)
+    _, du, dv, dz = best
+    z = float(np.median(z_model))
+    f = config.focal_px
+    return config.R_world_camera @ np.array([du * z / f, dv * z / f, dz]), np.array([du, dv])
+
+
+class TableCamera:
+    """The robot's depth camera over the table (see the module's docstring).
+
+    Args:
+        robot: The models (the scene, the object the robot looks for).
+        config: The camera as calibrated (where the robot believes it is; its noise model).
+        rng: Seeded generator: the calibration error (drawn here, once) and the sensor's noise.
+
+    Attributes:
+        config: The calibrated camera.
+        real: Where the camera really is.
+        images: Images taken so far.
+        wall_s: Wall time spent on images and fits (s).
+    """
+
+    def __init__(self, robot: Robot, config: CameraConfig, rng: np.random.Generator) -> None:
+        self.robot, self.config, self.rng = robot, config, rng
+        self.real = config.drawn(rng)
+        self.camera = DepthCamera(robot, config)
+        m, h, scene = robot.mj, robot.handles, robot.scene
+        unknown = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name) for name in ("table", INTRUDER)}
+        unknown |= {0, h.object_body}
+        self.known = frozenset(b for b in range(m.nbody) if b not in unknown)  # its links, its map's obstacles
+        self.obj = scene.object
+        self.model = SurfaceModel(self.obj)
+        centre, half = np.asarray(scene.table_center_xy_m), np.asarray(scene.table_size_xy_m) / 2
+        self.table_box = (centre - half, centre + half)
+        self.clearance_m = 4 * float(config.depth_sigma_m(1.0))
+        geo = self.obj.geometry()
+        self.tallest_m = 1.5 * float(np.max(geo.extent_m))
+        lo, hi = geo.vertices.min(axis=0), geo.vertices.max(axis=0)
+        self._centre_local = (lo + hi) / 2
+        self._radius_m = float(np.linalg.norm(hi - lo)) / 2 + SEARCH_MARGIN_M
+        self.images = 0
+        self.wall_s = 0.0
+
+    def close(self) -> None:
+        """Release the OpenGL context."""
+        self.camera.close()
+
+    def _image(self, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+        """One depth image as the sensor reports it, and the pixels of what the robot knows is there."""
+        exact = self.camera.render_depth(d, seen_from=self.real)
+        depth = sensor_depth(exact, self.config, self.rng)
+        self.images += 1
+        return depth, self.camera.render_mask(d, self.known)
+
+    def _window(self, T_world_object: pin.SE3) -> np.ndarray:
+        """The pixels (H, W) (bool) of the image's rectangle around the object's bounding sphere at this pose
+        (plus the table around it), so that a look near a known place back-projects only those."""
+        c = self.config
+        centre = T_world_object.act(self._centre_local)
+        x, y, z = c.R_world_camera.T @ (centre - np.asarray(c.position_m))
+        window = np.zeros((c.height_px, c.width_px), dtype=bool)
+        if z <= c.min_range_m:
+            return window
+        f = c.focal_px
+        u, v = f * x / z + c.width_px / 2, f * y / z + c.height_px / 2
+        r = 2 * self._radius_m * f / z + MASK_MARGIN_PX
+        window[max(0, int(v - r)):max(0, int(v + r) + 1), max(0, int(u - r)):max(0, int(u + r) + 1)] = True
+        return window
+
+    def _near(self, points: np.ndarray, T_world_object: pin.SE3) -> np.ndarray:
+        centre = T_world_object.act(self._centre_local)
+        return points[np.linalg.norm(points - centre, axis=1) < self._radius_m]
+
+    def _hand_offset(self, d: mujoco.MjData, depth: np.ndarray, known: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The calibration error's displacement of the points around the hand and the self-filter where the
+        sensor sees the robot (:func:`register_offset` on the robot's model of itself near the tcp)."""
+        own = self.camera.render_depth(d, hide_object=True)  # its model of itself, where it believes
+        tcp = d.site_xpos[self.robot.handles.tcp_site]
+        hand = np.zeros(known.shape, dtype=bool)
+        hand[own > 0.0] = np.linalg.norm(point_cloud(own, self.config) - tcp, axis=1) < HAND_RADIUS_M
+        offset, shift = register_offset(depth, own, known & hand, self.config)
+        moved = ndimage.shift(known, (shift[1], shift[0]), order=0, mode="constant", cval=False)
+        return offset, ndimage.binary_dilation(moved, iterations=2)
+
+    def locate(self, d: mujoco.MjData, near: pin.SE3 | None = None, start: pin.SE3 | None = None,
+               from_hand: bool = False) -> PoseEstimate:
+        """The resting object's pose.
+
+        Args:
+            d: The simulation (rendered; the robot's configuration for its self-filter).
+            near: Look only around this pose (where the object should be); default: the whole table.
+            start: Fit from this pose only (:meth:`recheck`); default: from several yaws.
+            from_hand: Measure the object against the hand next to it (the calibration error cancels, as in
+                :meth:`in_hand`): where the hand is close, e.g. just after the release.
+
+        Raises:
+            ObjectNotSeen: too few points of the object (or of the table, or of the hand).
+        """
+        t0 = time.perf_counter()
+        try:
+            depth, known = self._image(d)
+            if from_hand:
+                offset, mask = self._hand_offset(d, depth, known)
+            else:
+                offset, mask = np.zeros(3), ndimage.binary_dilation(known, iterations=MASK_MARGIN_PX)
+            pixels = ~mask if near is None else ~mask & self._window(near)
+            cloud = point_cloud(depth, self.config, pixels) - offset
+            table = observed_table_height(cloud, self.robot.scene.table_height_m, self.table_box)
+            if near is not None:
+                cloud = self._near(cloud, near)
+            points = segment(cloud, table, self.table_box, self.clearance_m, self.tallest_m)
+            return fit_resting_pose(points, self.obj, table, self.rng, start=start, model=self.model)
+        finally:
+            self.wall_s += time.perf_counter() - t0
+
+    def recheck(self, d: mujoco.MjData, believed: pin.SE3) -> PoseEstimate:
+        """Where the resting object is now, looking near where it is believed to be and fitting from there."""
+        return self.locate(d, near=believed, start=believed)
+
+    def in_hand(self, d: mujoco.MjData, guess: pin.SE3) -> PoseEstimate:
+        """The held object's pose, its position measured against the gripper in the same image.
+
+        Args:
+            d: The simulation (rendered; the robot's configuration for its model of itself).
+            guess: Where the grasp model puts the object (its orientation is kept).
+
+        Raises:
+            ObjectNotSeen: too few points of the object or of the gripper.
+        """
+        t0 = time.perf_counter()
+        try:
+            depth, known = self._image(d)
+            offset, mask = self._hand_offset(d, depth, known)
+            points = self._near(point_cloud(depth, self.config, ~mask & self._window(guess)) - offset, guess)
+            points = points[points[:, 2] > self.robot.scene.table_height_m + self.clearance_m]
+            est = fit_held_pose(points, self.obj, guess, self.rng, model=self.model)
+            log.debug("in hand: calibration offset at the gripper (%.1f, %.1f, %.1f) mm; object %.1f mm from the "
+                      "grasp model", *(offset * 1e3), np.linalg.norm(est.T_world_object.translation
+                                                                     - guess.translation) * 1e3)
+            return est
+        finally:
+            self.wall_s += time.perf_counter() - t0
+
+
+__all__ = ["HAND_RADIUS_M", "MASK_MARGIN_PX", "TableCamera", "register_offset"]

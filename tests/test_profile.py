@@ -1,0 +1,153 @@
+"""The realistic profile: the robot knows the object only through its sensors (pickplace.task.profile,
+pickplace.task.observe.SensorObserver, pickplace.perception.view).
+
+Every episode here runs the real thing: MuJoCo physics, the depth camera rendered offscreen (EGL), the pose
+fits. The truth is read only to measure the episode.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import pytest
+from scipy import ndimage
+
+from pickplace.errors import ConfigError
+from pickplace.perception.camera import CameraConfig, DepthCamera
+from pickplace.perception.view import TableCamera, register_offset
+from pickplace.robot import gripper
+from pickplace.robot.ik import IKConfig, solve_ik
+from pickplace.robot.model import build
+from pickplace.task.episode import EpisodeConfig, run_episode
+from pickplace.task.observe import SimulatorObserver
+from pickplace.task.profile import ProfileConfig
+from pickplace.world.config import SceneConfig
+
+REALISTIC = EpisodeConfig(profile=ProfileConfig.named("realistic"))
+#: The skill's methods that measure the episode against the truth (the record), and nothing else.
+MEASUREMENTS = {"_measure_place", "_after_done", "_note_estimate"}
+
+
+def test_profile_config_from_toml_tables_and_errors_name_the_field() -> None:
+    c = EpisodeConfig.from_dict({"profile": {"name": "realistic", "camera": {"subpixel_px": 0.15},
+                                             "sensing": {"watch_period_s": 0.05}}})
+    assert c.profile.realistic and c.profile.camera.subpixel_px == 0.15 and c.profile.sensing.watch_period_s == 0.05
+    assert EpisodeConfig.from_dict(c.to_dict()) == c  # round trip
+    assert not EpisodeConfig().profile.realistic  # ideal by default
+    with pytest.raises(ConfigError, match=r"profile\.name.*ideal, realistic"):
+        EpisodeConfig.from_dict({"profile": {"name": "perfect"}})
+    with pytest.raises(ConfigError, match=r"profile\.lidar"):
+        EpisodeConfig.from_dict({"profile": {"lidar": {}}})
+    with pytest.raises(ConfigError, match=r"sensing\.watch_period_s"):
+        EpisodeConfig.from_dict({"profile": {"sensing": {"watch_period_s": 0.0}}})
+
+
+def test_register_offset_recovers_a_known_image_shift_and_depth_offset() -> None:
+    """A depth image shifted by a fraction of a pixel and moved 3 mm further: found within 0.2 px and 1 mm."""
+    robot = build()
+    d = robot.make_data()
+    mujoco.mj_forward(robot.mj, d)
+    camera = DepthCamera(robot)
+    try:
+        model = camera.render_depth(d, hide_object=True)
+        own = camera.render_mask(d, frozenset(robot.handles.robot_bodies))
+    finally:
+        camera.close()
+    du, dv, dz = 2.3, -1.6, 0.003
+    measured = ndimage.shift(model, (dv, du), order=1, mode="nearest") + dz
+    offset, shift = register_offset(measured, model, own, camera.config)
+    assert np.allclose(shift, [du, dv], atol=0.2)
+    along_axis = float(offset @ camera.config.R_world_camera[:, 2])
+    assert abs(along_axis - dz) < 0.001
+
+
+def test_the_held_object_is_measured_against_the_hand_through_the_calibration_error() -> None:
+    """A cube held 0.12 m over the goal, off the grasp model by up to 8 mm along the pads: with the camera's
+    calibration error (2 mm and 0.2 degrees per axis, which displaces the points there by several mm), the
+    estimate relative to the hand is within 2.5 mm of the truth every time and 1.5 mm in the median."""
+    scene = SceneConfig()
+    robot = build(scene)
+    d = robot.make_data()
+    h = robot.handles
+    geo = scene.object.geometry()
+    lo, hi = geo.vertices.min(axis=0), geo.vertices.max(axis=0)
+    centre = (lo + hi) / 2
+    R_tcp_object = np.diag([1.0, -1.0, -1.0])  # upright under a top-down tcp
+    errors = []
+    for trial in range(5):
+        rng = np.random.default_rng(trial)
+        camera = TableCamera(robot, CameraConfig(), rng)
+        try:
+            yaw = rng.uniform(-1.0, 1.0)
+            R = np.diag([1.0, -1.0, -1.0]) @ pin.rpy.rpyToMatrix(0.0, 0.0, yaw)
+            T_tcp = pin.SE3(R, np.asarray(scene.goal_pos_m) + [0.0, 0.0, 0.12 + geo.extent_m[2] / 2])
+            d.qpos[h.arm_qpos] = solve_ik(robot, T_tcp, robot.home_q, "hold", IKConfig()).q
+            mujoco.mj_forward(robot.mj, d)
+            tcp = pin.SE3(d.site_xmat[h.tcp_site].reshape(3, 3).copy(), d.site_xpos[h.tcp_site].copy())
+            off = rng.uniform(-0.008, 0.008)
+            model = tcp * pin.SE3(R_tcp_object, -R_tcp_object @ centre)
+            truth = tcp * pin.SE3(R_tcp_object, np.array([off, 0.0, 0.0]) - R_tcp_object @ centre)
+            a = h.object_qpos
+            d.qpos[a:a + 3] = truth.translation
+            quat = np.empty(4)
+            mujoco.mju_mat2Quat(quat, truth.rotation.ravel())
+            d.qpos[a + 3:a + 7] = quat
+            mujoco.mj_forward(robot.mj, d)
+            est = camera.in_hand(d, model)
+            errors.append(float(np.linalg.norm(est.T_world_object.translation - truth.translation)))
+        finally:
+            camera.close()
+    assert max(errors) < 0.0025, errors
+    assert float(np.median(errors)) < 0.0015, errors
+
+
+def _poison(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The simulator's object state and contact forces: readable only by the skill's measurements."""
+
+    def guard(name: str, original: object) -> object:
+        def read(*args: object, **kwargs: object) -> object:
+            caller = sys._getframe(1).f_code.co_name
+            if caller not in MEASUREMENTS:
+                raise AssertionError(f"{caller} read the simulator's {name} in the realistic profile")
+            return original(*args, **kwargs)  # type: ignore[operator]
+        return read
+
+    for name in ("object_pose", "object_position", "object_velocity", "observe", "moved_m", "load_sample",
+                 "pad_forces", "pad_contacts", "slip_m", "start_holding"):
+        monkeypatch.setattr(SimulatorObserver, name, guard(name, getattr(SimulatorObserver, name)))
+    for name in ("pad_forces", "pad_load", "pad_contacts"):
+        monkeypatch.setattr(gripper, name, guard(name, getattr(gripper, name)))
+
+
+def test_a_realistic_episode_never_reads_the_simulators_object_state(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The access test: with every accessor of the object's state and of the contact forces poisoned (they
+    raise for anyone but the episode's measurements), a realistic episode runs exactly as without poison,
+    and places the cube within the realistic profile's bounds."""
+    clean = run_episode(REALISTIC, seed=1)
+    # the same episode in the ideal profile reads the truth: its estimates are exact
+    ideal = run_episode(dataclasses.replace(REALISTIC, profile=ProfileConfig()), seed=1)
+    assert all(err == 0.0 for _, _, err, _ in ideal.pose_estimates)
+    _poison(monkeypatch)
+    poisoned = run_episode(REALISTIC, seed=1)
+    assert clean.success and poisoned.success, (clean.failure_reason, poisoned.failure_reason)
+    assert poisoned.phase_timeline == clean.phase_timeline
+    assert poisoned.place_error_xy_m == clean.place_error_xy_m
+    assert clean.place_error_xy_m < 0.003
+    what = [w for _, w, _, _ in clean.pose_estimates]
+    assert what == ["resting", "in hand", "resting"]  # the pick, the re-aim above the goal, the place check
+    assert all(err < 0.015 for _, _, err, _ in clean.pose_estimates)  # a few mm: the camera's, not the truth
+    assert abs(clean.measured_mass_kg / REALISTIC.scene.object.mass_kg - 1.0) < 0.15  # weighed at the wrist
+
+
+def test_the_object_not_seen_is_a_clear_failure_before_the_arm_moves() -> None:
+    """A camera looking away from the table sees neither the table nor the object: IDLE fails and says so."""
+    away = dataclasses.replace(REALISTIC, profile=dataclasses.replace(
+        REALISTIC.profile, camera=CameraConfig(position_m=(0.8, 0.0, 1.05), look_at_m=(2.0, 0.0, 1.5))))
+    r = run_episode(away, seed=0)
+    assert not r.success and r.failure_phase == "IDLE"
+    assert r.failure_kind == "ObjectNotSeen" and "no point of the table top" in (r.failure_reason or "")
+    assert r.cycle_time_s == 0.0  # nothing moved
