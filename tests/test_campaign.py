@@ -4,7 +4,8 @@ Seeds, validation and the summary's figures are checked without running episodes
 (about 0.7 s each on an idle machine) on 2 worker processes: a small campaign and its summary, the reproduce
 command of a failed trial, a campaign killed with SIGKILL and resumed, a worker that crashes / hangs / raises,
 and the Ray backend against the local one (skipped when Ray is not installed). Joining a Ray cluster started
-with ``ray start`` is tested in ``test_campaign_ray_cluster.py``.
+with ``ray start`` is tested in ``test_campaign_ray_cluster.py``. The two isolation tests (each waits out a
+30 s trial limit) and the 50-trial smoke campaign are ``-m slow``.
 
 Nothing here depends on the machine's speed: the only wall-clock limits are far above what they bound (a
 normal trial gets 20 s or more; the hanging trial can never finish), and two runs of a trial are compared
@@ -416,6 +417,7 @@ def _check_isolation(run: CampaignRun, small: CampaignRun, timeout_s: float) -> 
     assert len(_lines(run.out_dir / RESULTS_FILE)) == 5
 
 
+@pytest.mark.slow
 def test_worker_crash_hang_and_exception_are_isolated(small: CampaignRun, tmp_path: Path) -> None:
     run = run_campaign(CampaignConfig(trials=5, seed=SEED, workers=2, timeout_s=ISOLATION_TIMEOUT_S),
                        tmp_path / "faulty", run_fn=misbehaving_episode)
@@ -473,6 +475,7 @@ def test_ray_backend_gives_the_local_results(small: CampaignRun, tmp_path: Path,
     _assert_ray_is_gone(ray_tag)
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(sys.platform != "linux", reason="checks leftover processes through /proc")
 def test_ray_worker_crash_hang_and_exception_are_isolated(small: CampaignRun, tmp_path: Path, ray_tag: str) -> None:
     pytest.importorskip("ray", reason="Ray is not installed (pip install 'pickplace[ray]')")

@@ -6,6 +6,8 @@ authentication on at ``ray start --head`` when a token exists (here made with ``
 and off with ``RAY_AUTH_MODE=disabled``. The campaign joins through ``pickplace.cli.main`` with nothing exported by
 hand: the token is where ``ray start`` found it (``$HOME/.ray/auth_token``); its results must equal the local
 backend's. A driver without the token, or with a wrong one, must fail with one line that says what to set.
+The tests that start a cluster are ``-m slow``; the token lookup, the address parsing and the error for an
+address with nothing behind it run by default.
 
 Teardown kills the head's process group and every descendant of its processes (Ray's workers run in their own
 process groups), then checks that none is left; ``ray stop`` is not used, as it would stop every Ray session on the
@@ -199,6 +201,7 @@ def test_token_source_follows_rays_order_and_addresses_split(tmp_path: Path) -> 
         split_address("10.0.0.5:port")
 
 
+@pytest.mark.slow
 def test_eval_joins_a_cluster_with_token_auth(token_head: Head, local: CampaignRun, tmp_path: Path,
                                               monkeypatch: pytest.MonkeyPatch,
                                               capfd: pytest.CaptureFixture[str]) -> None:
@@ -211,6 +214,7 @@ def test_eval_joins_a_cluster_with_token_auth(token_head: Head, local: CampaignR
     assert not ray.is_initialized()
 
 
+@pytest.mark.slow
 def test_eval_joins_a_cluster_without_auth(local: CampaignRun, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """RAY_AUTH_MODE=disabled on the head. The driver has a token and RAY_AUTH_MODE=token (as a local ray.init()
     leaves it): a driver in token mode cannot serve a cluster without tokens, so the cluster's mode must win."""
@@ -228,6 +232,7 @@ def test_eval_joins_a_cluster_without_auth(local: CampaignRun, tmp_path: Path, m
     _check_same_as_local(tmp_path / "auto", local)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("token", [None, "not-the-token"])
 def test_eval_without_the_right_token_fails_with_one_line(token_head: Head, token: str | None, tmp_path: Path,
                                                           monkeypatch: pytest.MonkeyPatch,

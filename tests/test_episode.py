@@ -3,7 +3,8 @@
 Every test runs the real stack (IK, RRT*, TOPP-RA, impedance control, gripper contacts) and asserts the
 measured result against the targets: the reference design's figures (place error 1.4 mm RMS, cycle time
 8.2 s, tracking < 5 mrad, no torque saturation) and ours (the cube still within 2 mm of B 1 s after release).
-Run with ``-s`` to see the figures. The matrix is ``-m slow``; its cases are distinct episodes (checked).
+Run with ``-s`` to see the figures. The matrix, the default episode's video and ``pickplace run`` in a
+subprocess are ``-m slow``; the matrix's cases are distinct episodes (checked).
 
 All figures are of the ideal robot: the cube's pose is read from the simulator, the controller's model is the
 simulated arm's own.
@@ -21,6 +22,7 @@ import numpy as np
 import pytest
 
 from pickplace.errors import ConfigError
+from pickplace.eval.campaign.store import toml_dumps
 from pickplace.task.episode import EpisodeConfig, EpisodeResult, run_episode
 from pickplace.task.machine import Phase
 
@@ -124,6 +126,7 @@ def test_tracking_errors_cover_every_phase_that_tracks(default_episode: EpisodeR
     assert json_phase["joint_error_max_rad"] is None and json_phase["tcp_position_error_max_m"] > 0
 
 
+@pytest.mark.slow
 def test_default_episode_renders_a_video_and_plots(default_episode: EpisodeResult, tmp_path) -> None:
     """The product's video and plots, offscreen on a CPU-only machine (EGL / Mesa)."""
     iio = pytest.importorskip("imageio.v3", reason="needs the video extra: pip install 'pickplace[video]'")
@@ -203,15 +206,15 @@ def test_bad_seed_and_config_rejected() -> None:
 def test_config_round_trips_through_toml(tmp_path) -> None:
     config = EpisodeConfig().with_scene(cube_mass_kg=0.3, obstacle=True)
     config = dataclasses.replace(config, planner=dataclasses.replace(config.planner, time_budget_s=0.5))
-    lines = []
-    for section, values in config.to_dict().items():
-        lines.append(f"[{section}]")
-        lines += [f"{k} = {json.dumps(v)}" for k, v in values.items()]
     path = tmp_path / "episode.toml"
-    path.write_text("\n".join(lines) + "\n")
+    path.write_text(toml_dumps(config.to_dict()))
     assert EpisodeConfig.from_toml(path) == config
+    realistic = config.with_profile("realistic")  # its sub-tables ([profile.camera], [profile.loop], ...) too
+    path.write_text(toml_dumps(realistic.to_dict()))
+    assert EpisodeConfig.from_toml(path) == realistic
 
 
+@pytest.mark.slow
 def test_cli_run_json_and_unreachable_goal() -> None:
     """``pickplace run`` as a user runs it: JSON on success; one line, no traceback, exit 1 on a bad goal."""
     ok = subprocess.run([sys.executable, "-m", "pickplace", "run", "--json", "--cube-mass", "0.2"],

@@ -21,6 +21,7 @@ def test_single_episode() -> None:
     assert "placed" in proc.stdout and "RETRACT" in proc.stdout
 
 
+@pytest.mark.slow
 def test_faulted_episode() -> None:
     proc = _run("faulted_episode.py")
     assert proc.returncode == 0, proc.stderr

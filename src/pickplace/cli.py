@@ -199,8 +199,8 @@ def episode_config_from_args(args: argparse.Namespace, base: EpisodeConfig | Non
     config = base
     if args.fault:
         config = dataclasses.replace(config, faults=_faults_from_args(args.fault, config.faults))
-    if args.profile is not None:  # the name; the config's [profile.*] settings stay
-        config = dataclasses.replace(config, profile=dataclasses.replace(config.profile, name=args.profile))
+    if args.profile is not None and args.profile != config.profile.name:
+        config = config.with_profile(args.profile)
     scene: dict[str, object] = {}
     obj: dict[str, object] = {}
     if args.object is not None:
@@ -257,11 +257,13 @@ CONDITIONS = {
     "ideal": ("Ideal robot: the object's pose is read from the simulator (exact, no delay), the controller's "
               "dynamics model is the simulated arm's own, control runs at the 1 kHz physics rate without "
               "delay. Tracking errors: every control loop of every phase; --json has them per phase."),
-    "realistic": ("Realistic sensing: the object's pose from a simulated D435 depth camera (noise, missing edge "
+    "realistic": ("Realistic robot: the object's pose from a simulated D435 depth camera (noise, missing edge "
                   "pixels, a calibration error drawn per episode), slip from the fingers and the wrist "
-                  "force/torque sensor, the weight from the wrist; the errors are measured against the "
-                  "simulator's truth, which the robot never used. The controller (its model, its 1 kHz loop) is "
-                  "still the ideal one. Tracking errors: every control loop of every phase."),
+                  "force/torque sensor, the weight from the wrist; control at 500 Hz with 2 ms latency on "
+                  "quantized, noisy encoders, a dynamics model off by up to 10 % per link, joint friction the "
+                  "controller does not know, a gripper closing at 0.15 m/s. Errors are measured against the "
+                  "simulator's truth, which the robot never used. Tracking errors: every control loop of every "
+                  "phase."),
 }
 
 
@@ -454,11 +456,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_inspect)
 
     p = sub.add_parser("bench", help="benchmarks: planning (vs OMPL), control (vs bare mj_step), campaign (scaling), "
-                                     "perception (camera pose error)")
-    p.add_argument("name", choices=["planning", "control", "campaign", "perception"], help="which benchmark")
+                                     "perception (camera pose error), sensing (success and place error vs camera "
+                                     "noise and calibration)")
+    p.add_argument("name", choices=["planning", "control", "campaign", "perception", "sensing"],
+                   help="which benchmark")
     p.add_argument("bench_args", nargs=argparse.REMAINDER,
                    help="options of the benchmark (e.g. --json; planning: --quick, --queries N, --budget S, "
-                        "--no-ompl)")
+                        "--no-ompl; sensing: --quick, --trials N, --workers W, --plot PATH.png)")
     p.set_defaults(func=_cmd_bench)
 
     p = sub.add_parser("eval", help="a campaign of randomized episodes on local processes or Ray, persisted and "

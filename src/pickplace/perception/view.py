@@ -28,6 +28,7 @@ The only simulator state read here is what a sensor reads: the rendered images. 
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 
@@ -226,13 +227,19 @@ class TableCamera:
             if near is not None:
                 cloud = self._near(cloud, near)
             points = segment(cloud, table, self.table_box, self.clearance_m, self.tallest_m)
-            return fit_resting_pose(points, self.obj, table, self.rng, start=start, model=self.model)
+            est = fit_resting_pose(points, self.obj, table, self.rng, start=start, model=self.model)
+            # it rests on the table of the robot's map: its height is that table's (the table as seen gave the
+            # fit its heights; the calibration error shifts them by a few mm)
+            T = est.T_world_object
+            z = self.robot.scene.table_height_m - self.model.z_min_m
+            return dataclasses.replace(est, T_world_object=pin.SE3(T.rotation, np.array([*T.translation[:2], z])))
         finally:
             self.wall_s += time.perf_counter() - t0
 
-    def recheck(self, d: mujoco.MjData, believed: pin.SE3) -> PoseEstimate:
-        """Where the resting object is now, looking near where it is believed to be and fitting from there."""
-        return self.locate(d, near=believed, start=believed)
+    def recheck(self, d: mujoco.MjData, believed: pin.SE3, from_hand: bool = False) -> PoseEstimate:
+        """Where the resting object is now, looking near where it is believed to be and fitting from there
+        (``from_hand``: measured against the hand next to it, :meth:`locate`)."""
+        return self.locate(d, near=believed, start=believed, from_hand=from_hand)
 
     def in_hand(self, d: mujoco.MjData, guess: pin.SE3) -> PoseEstimate:
         """The held object's pose, its position measured against the gripper in the same image.

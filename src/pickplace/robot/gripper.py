@@ -5,6 +5,8 @@ How well it holds is measured by the hold test, :mod:`pickplace.grasping.hold`.
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import logging
 import math
 from collections.abc import Iterator
@@ -13,10 +15,100 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from pickplace.errors import ConfigError
 from pickplace.robot.model import Robot
+from pickplace.world.config import check_range
 from pickplace.world.contact import Contact
 
 log = logging.getLogger(__name__)
+
+
+# --------------------------------------------------------------------------- #
+# drive: closing speed and grip force
+# --------------------------------------------------------------------------- #
+
+#: The finger drive as ``gripper.xml`` builds it: the position servo saturates at 40 N on the coupled finger pair,
+#: 20 N per pad, against 60 N s/m of damping per finger slide, so the fingers close at 40 / (2 x 60) = 1/3 m/s.
+IDEAL_GRIP_FORCE_N = 20.0
+IDEAL_CLOSING_SPEED_M_S = 40.0 / 120.0
+#: Robotiq 2F-85 datasheet (Robotiq, "2F-85 & 2F-140 Instruction Manual", specifications): closing speed
+#: 20-150 mm/s, grip force 20-235 N. The realistic profile takes the top speed, and the lowest force, which is
+#: also this gripper's squeeze: the grasp capacities (``grasping.grip``) are computed from the model's force
+#: limit either way, so a stronger grip stays an explicit choice.
+ROBOTIQ_2F85_MAX_CLOSING_SPEED_M_S = 0.150
+ROBOTIQ_2F85_MIN_GRIP_FORCE_N = 20.0
+ROBOTIQ_2F85_MAX_GRIP_FORCE_N = 235.0
+
+
+@dataclass(frozen=True)
+class GripperConfig:
+    """How fast the fingers close and how hard they squeeze (defaults: the model as built, the ideal profile).
+
+    The finger servo is a position actuator that, commanded fully closed, saturates at its force limit and
+    drives the two coupled finger slides against their damping: free closing speed = force limit / (2 x
+    damping per finger). :func:`with_gripper` sets the force limit to ``2 x grip_force_n`` (both pads) and the
+    damping to ``grip_force_n / closing_speed_m_s`` per finger; a force above the built one scales the servo's
+    stiffness with it, so that it still saturates as soon as the fingers stop 8 mm short of the closed target.
+
+    Attributes:
+        closing_speed_m_s: Speed of each finger (pad) closing or opening freely (m/s).
+        grip_force_n: Normal force of each pad on a held object, the servo saturated (N).
+    """
+
+    closing_speed_m_s: float = IDEAL_CLOSING_SPEED_M_S
+    grip_force_n: float = IDEAL_GRIP_FORCE_N
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        set_(self, "closing_speed_m_s", check_range("gripper.closing_speed_m_s", self.closing_speed_m_s,
+                                                    0.005, 1.0, unit="m/s"))
+        set_(self, "grip_force_n", check_range("gripper.grip_force_n", self.grip_force_n, 1.0,
+                                               ROBOTIQ_2F85_MAX_GRIP_FORCE_N, unit="N"))
+
+    @classmethod
+    def realistic(cls) -> GripperConfig:
+        """A Robotiq 2F-85-like drive: 0.15 m/s, 20 N (:data:`ROBOTIQ_2F85_MAX_CLOSING_SPEED_M_S`)."""
+        return cls(closing_speed_m_s=ROBOTIQ_2F85_MAX_CLOSING_SPEED_M_S, grip_force_n=ROBOTIQ_2F85_MIN_GRIP_FORCE_N)
+
+
+def with_gripper(robot: Robot, config: GripperConfig) -> Robot:
+    """A copy of ``robot`` whose finger drive has ``config``'s closing speed and grip force.
+
+    Returns:
+        ``robot`` itself when its model already has them (the ideal default, so ideal runs are unchanged bit
+        for bit); otherwise a :class:`Robot` with its own MuJoCo model (the Pinocchio model is shared: the
+        fingers' damping and force do not enter the arm's controllers).
+
+    Raises:
+        ConfigError: ``config`` is not a :class:`GripperConfig`.
+    """
+    if not isinstance(config, GripperConfig):
+        raise ConfigError("gripper", config, "must be a GripperConfig")
+    m, h = robot.mj, robot.handles
+    a = h.gripper_actuator
+    force = 2.0 * config.grip_force_n
+    damping = config.grip_force_n / config.closing_speed_m_s
+    now_force = float(m.actuator_forcerange[a, 1])
+    now_damping = m.dof_damping[h.finger_dof]
+    if math.isclose(force, now_force, rel_tol=1e-9) and np.allclose(now_damping, damping, rtol=1e-9, atol=0.0):
+        return robot
+    mj = copy.deepcopy(m)
+    mj.actuator_forcerange[a] = (-force, force)
+    mj.actuator_forcelimited[a] = 1
+    mj.dof_damping[h.finger_dof] = damping
+    # the servo saturates (squeezes with its force limit) once the fingers stop short of the closed target by
+    # more than limit / kp: keep that distance (8 mm as built) for a stronger limit by scaling kp with it
+    kp = float(m.actuator_gainprm[a, 0]) * max(1.0, force / now_force)
+    mj.actuator_gainprm[a, 0] = kp
+    mj.actuator_biasprm[a, 1] = -kp
+    log.info("gripper drive: %.3f m/s, %.1f N per pad", config.closing_speed_m_s, config.grip_force_n)
+    return dataclasses.replace(robot, mj=mj)
+
+
+def closing_speed_m_s(robot: Robot) -> float:
+    """The fingers' free closing speed (m/s) of ``robot``'s model: force limit / total finger damping."""
+    m, h = robot.mj, robot.handles
+    return float(m.actuator_forcerange[h.gripper_actuator, 1] / m.dof_damping[h.finger_dof].sum())
 
 
 # --------------------------------------------------------------------------- #

@@ -24,6 +24,7 @@ from pickplace.grasping.targets import LIFT_STEP_M, MAX_RAISE_M
 from pickplace.motion import control
 from pickplace.motion.collision import CollisionChecker, CollisionPolicy
 from pickplace.motion.control import ControlConfig, Payload
+from pickplace.motion.loop import ControlLoop
 from pickplace.motion.planning import PlannerConfig, plan
 from pickplace.motion.timing import TimingConfig, Trajectory, retime
 from pickplace.robot import gripper
@@ -54,6 +55,8 @@ class Arm:
         out: The record the motions add to (segments, saturation, wall time); default: a new one.
         observer: What the robot knows about the object (:mod:`pickplace.task.observe`); default: the
             simulator's truth (the ideal profile).
+        loop: The control loop every motion runs in (rate, latency, encoders,
+            :class:`~pickplace.motion.loop.ControlLoop`); default: the ideal loop.
 
     Attributes:
         observer: The robot's source of knowledge about the object (the skills' and the monitor's).
@@ -78,6 +81,7 @@ class Arm:
         rng: np.random.Generator | None = None,
         out: MachineOutcome | None = None,
         observer: Observer | None = None,
+        loop: ControlLoop | None = None,
     ) -> None:
         self.robot, self.d = robot, data
         self.cfg, self.ctrl, self.planner, self.timing = machine, control_config, planner, timing
@@ -86,6 +90,7 @@ class Arm:
         self.injector = FaultInjector(robot, self.faults)
         rng = rng if rng is not None else np.random.default_rng(0)
         self.noise = control.JointNoise(self.faults.joint_noise_rad, rng) if self.faults.joint_noise_rad > 0 else None
+        self.loop = loop  # None: the ideal loop (exact state, every physics step, no delay)
         self.observer: Observer = observer if observer is not None else SimulatorObserver(robot, data)
         self.monitor = StepMonitor(robot, recorder, machine.slip_tolerance_m, self.injector, self.observer)
         self.monitor.predict_every = max(1, round(machine.predict_period_s / float(robot.mj.opt.timestep)))
@@ -128,14 +133,14 @@ class Arm:
 
     def hold(self, q: np.ndarray, duration_s: float) -> control.TrackingRecord:
         rec = control.hold(self.robot, self.d, q, duration_s, self.ctrl, payload=self.payload, hook=self.monitor,
-                           noise=self.noise)
+                           noise=self.noise, loop=self.loop)
         self.count(rec)
         return rec
 
     def stop(self) -> None:
         """Bring the arm to rest at the trajectories' deceleration limits, then hold it for 0.15 s."""
         rec = control.stop(self.robot, self.d, self.timing.acceleration_limits_rad_s2, self.ctrl,
-                           payload=self.payload, hook=self.monitor, noise=self.noise, settle_s=0.15)
+                           payload=self.payload, hook=self.monitor, noise=self.noise, loop=self.loop, settle_s=0.15)
         self.count(rec)
 
     def hold_until(self, q: np.ndarray | None, done: Callable[[], bool], timeout_s: float,
@@ -230,7 +235,7 @@ class Arm:
             self.monitor.predictor = self.predict(t_start)
         try:
             rec = control.track(self.robot, self.d, self.trajectory, self.ctrl, payload=self.payload,
-                                hook=self.monitor, settle_s=self.cfg.settle_s, noise=self.noise)
+                                hook=self.monitor, settle_s=self.cfg.settle_s, noise=self.noise, loop=self.loop)
         finally:
             self.monitor.predictor = None
         self.count(rec)
@@ -251,7 +256,7 @@ class Arm:
     def linear(self, phase: Phase, target: np.ndarray, hook: control.Hook | None = None) -> control.CartesianRecord:
         """Move the tcp along a straight line to ``target`` (3,) (m); ``hook`` replaces the monitor."""
         rec = control.move_linear(self.robot, self.d, target, self.motion_config(), payload=self.payload,
-                                  hook=hook or self.monitor, noise=self.noise)
+                                  hook=hook or self.monitor, noise=self.noise, loop=self.loop)
         self.count(rec)
         if not rec.reached:
             raise PhaseFailed(phase, f"the tcp stopped {rec.final_error_m * 1e3:.2f} mm from its target")
@@ -288,7 +293,7 @@ class Arm:
             path = np.vstack([self.q, q_back])
             if float(np.max(np.abs(path[1] - path[0]))) > 1e-6:
                 rec = control.track(self.robot, self.d, retime(path, self.timing), self.ctrl, payload=self.payload,
-                                    hook=self.monitor, settle_s=0.1, noise=self.noise)
+                                    hook=self.monitor, settle_s=0.1, noise=self.noise, loop=self.loop)
                 self.count(rec)
         finally:
             self.monitor.tolerate_contacts = False

@@ -66,8 +66,10 @@ class EpisodeConfig:
         timing: TOPP-RA limits.
         ik: IK settings.
         faults: Faults injected on purpose (none by default).
-        profile: How the robot knows the world: ``ideal`` (the simulator's truth) or ``realistic`` (a depth
-            camera and the robot's own sensors), :mod:`pickplace.task.profile`.
+        profile: How the robot knows the world and is controlled: ``ideal`` (the simulator's truth) or
+            ``realistic`` (a depth camera and the robot's own sensors, a 500 Hz loop with latency, model error),
+            :mod:`pickplace.task.profile`. With a realistic loop, a default ``control`` becomes
+            :meth:`ControlConfig.realistic` (the ideal gains do not hold such a loop).
     """
 
     scene: SceneConfig = field(default_factory=SceneConfig)
@@ -83,6 +85,10 @@ class EpisodeConfig:
         for name, cls in _SECTIONS.items():
             if not isinstance(getattr(self, name), cls):
                 raise ConfigError(name, getattr(self, name), f"must be a {cls.__name__}")
+        if not self.profile.loop.ideal and self.control == ControlConfig():
+            # the ideal gains do not hold a 500 Hz loop with latency (ControlConfig.realistic says why): a
+            # realistic loop's default gains are the realistic ones
+            object.__setattr__(self, "control", ControlConfig.realistic())
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> EpisodeConfig:
@@ -97,12 +103,11 @@ class EpisodeConfig:
             if not isinstance(data.get(name, {}), dict):
                 raise ConfigError(name, data[name], "must be a table of keys")
         parts: dict[str, Any] = {"scene": SceneConfig.from_mapping(data.get("scene", {}),
-                                                                   object_data=data.get("object"))}
+                                                                   object_data=data.get("object")),
+                                 "profile": ProfileConfig.from_mapping(data.get("profile", {}))}
         for name, section_cls in _SECTIONS.items():
-            if name == "profile":
-                parts[name] = ProfileConfig.from_mapping(data.get(name, {}))
-            elif name != "scene":
-                base = TimingConfig.ur5e() if section_cls is TimingConfig else None
+            if name not in ("scene", "profile"):
+                base = _base(section_cls, parts["profile"])
                 aliases = LEGACY_FAULT_KEYS if section_cls is FaultConfig else None
                 parts[name] = from_mapping(section_cls, data.get(name, {}), name, base, aliases)
         return cls(**parts)
@@ -117,6 +122,15 @@ class EpisodeConfig:
         out = {"object": _plain(self.scene.object.to_dict()), "scene": _plain(self.scene.to_dict())}
         out.update({name: _plain(dataclasses.asdict(getattr(self, name))) for name in _SECTIONS if name != "scene"})
         return out
+
+    def with_profile(self, name: str) -> EpisodeConfig:
+        """A copy in the profile ``name`` with its defaults, the controller's gains included (the realistic
+        profile's are :meth:`ControlConfig.realistic`) unless they were changed from either default."""
+        profile = ProfileConfig.named(name)
+        control = self.control
+        if control in (ControlConfig(), ControlConfig.realistic()):
+            control = ControlConfig.realistic() if not profile.loop.ideal else ControlConfig()
+        return dataclasses.replace(self, profile=profile, control=control)
 
     def with_scene(self, **changes: Any) -> EpisodeConfig:
         """A copy with some scene fields changed (validated); the ``cube_*`` keys of earlier versions work too
@@ -142,6 +156,16 @@ def read_toml(path: str | Path) -> dict[str, Any]:
 _SECTIONS: dict[str, type] = {"scene": SceneConfig, "machine": MachineConfig, "control": ControlConfig,
                               "planner": PlannerConfig, "timing": TimingConfig, "ik": IKConfig,
                               "faults": FaultConfig, "profile": ProfileConfig}
+
+
+def _base(section_cls: type, profile: ProfileConfig) -> Any:
+    """The defaults a TOML table starts from: the UR5e's limits for ``[timing]``, the realistic gains for
+    ``[control]`` in the realistic profile; None (the class's own defaults) otherwise."""
+    if section_cls is TimingConfig:
+        return TimingConfig.ur5e()
+    if section_cls is ControlConfig and profile.realistic:
+        return ControlConfig.realistic()
+    return None
 
 
 def _plain(value: Any) -> Any:
@@ -303,7 +327,7 @@ def run_episode(config: EpisodeConfig | None = None, seed: int = 0, *, record: b
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ConfigError("seed", seed, "must be an integer >= 0")
     t0 = time.perf_counter()
-    robot = build(config.scene)
+    robot = config.profile.plant(build(config.scene), np.random.default_rng([seed, 3]))
     apply_model_faults(robot, config.faults)
     data = robot.make_data()
     config = dataclasses.replace(config, planner=dataclasses.replace(config.planner, seed=seed))  # as it runs
@@ -315,8 +339,9 @@ def run_episode(config: EpisodeConfig | None = None, seed: int = 0, *, record: b
         sensed = config.profile.observer(robot, data, np.random.default_rng([seed, 2]))
     else:
         sensed = None
+    loop = config.profile.control_loop(np.random.default_rng([seed, 4]))
     machine = PickPlaceMachine(robot, data, config.machine, config.control, config.planner, config.timing, config.ik,
-                               recorder, config.faults, noise_rng, sensed)
+                               recorder, config.faults, noise_rng, sensed, loop)
     t_sim0 = time.perf_counter()
     try:
         out = machine.run()

@@ -12,6 +12,7 @@ import mujoco
 import numpy as np
 
 from pickplace.motion.control import ControlConfig
+from pickplace.motion.loop import ControlLoop
 from pickplace.motion.planning import PlannerConfig
 from pickplace.motion.timing import TimingConfig
 from pickplace.robot.ik import IKConfig
@@ -47,6 +48,7 @@ class PickPlaceMachine:
             :func:`pickplace.task.faults.apply_model_faults`).
         rng: Seeded generator for the sensor noise fault.
         observer: What the robot knows about the object; default: the simulator's truth (ideal profile).
+        loop: The control loop (rate, latency, encoders); default: the ideal loop.
 
     Attributes:
         arm: The arm (its monitor keeps the clock: ``arm.monitor.t``).
@@ -66,9 +68,10 @@ class PickPlaceMachine:
         faults: FaultConfig | None = None,
         rng: np.random.Generator | None = None,
         observer: Observer | None = None,
+        loop: ControlLoop | None = None,
     ) -> None:
         self.arm = Arm(robot, data, machine, control_config, planner, timing, recorder, faults, rng,
-                       observer=observer)
+                       observer=observer, loop=loop)
         self.skill = PickPlaceSkill(self.arm, ik)
         self.monitor = self.arm.monitor
 

@@ -30,6 +30,9 @@ from pickplace.world.contact import Contact
 
 log = logging.getLogger(__name__)
 
+#: The camera measures a resting object against the hand when the tcp is this close to it (m).
+HAND_NEAR_M = 0.1
+
 
 class Observer(Protocol):
     """Everything a skill may know about the object and the grip (SI units, world frame).
@@ -88,6 +91,15 @@ class Observer(Protocol):
     def load_sample(self) -> tuple[float, float, float]:
         """While lifting: the pads' total normal force (N), the vertical force the hand carries the object with
         (N), and ``g`` plus the object's vertical acceleration (m/s^2): the mass is the ratio of the sums."""
+        ...
+
+    def airborne(self, z0_m: float, mass_kg: float) -> bool:
+        """Whether the object of ``mass_kg``, held, has left the table (its origin was at height ``z0_m``)."""
+        ...
+
+    def touched_down(self, mass_kg: float) -> bool:
+        """Whether the table now carries the held object of ``mass_kg`` (a set-down can stop): never for a
+        sensor that knows the object's height exactly (the set-down goes to it)."""
         ...
 
     def start_holding(self) -> None:
@@ -176,6 +188,14 @@ class SimulatorObserver:
         g = float(-self.robot.mj.opt.gravity[2])
         return float(normal.sum()), float(f[2]), g + float(self.d.qacc[self._dof + 2])
 
+    def airborne(self, z0_m: float, mass_kg: float) -> bool:
+        """The object's origin is 3 mm above where it rested."""
+        return bool(self.object_position()[2] > z0_m + 0.003)
+
+    def touched_down(self, mass_kg: float) -> bool:
+        """Never: the set-down goes to the object's exact resting height."""
+        return False
+
     def _p_tcp_object(self) -> np.ndarray:
         R = self.d.site_xmat[self._tcp].reshape(3, 3)
         return R.T @ (self.object_position() - self.d.site_xpos[self._tcp])
@@ -211,6 +231,9 @@ class SensingConfig:
         load_filter_s: Time constant of the low-pass on the wrist force for the "object lost" check (s).
         load_lost_fraction: The object counts as lost when the wrist carries less than this fraction of its
             weight (times ``g`` plus the hand's vertical acceleration).
+        lifted_fraction: The object counts as off the table once the hand has risen and the wrist carries this
+            fraction of its weight (pads sliding along an object that stays put carry a part: twice their
+            friction force).
         watch_period_s: Period of the camera's re-checks of a resting object (moved? at rest?) (s): a depth
             camera streams at 30-90 Hz, but each re-check renders, segments and fits (tens of ms of
             processing), so the robot re-checks at 10 Hz.
@@ -221,6 +244,7 @@ class SensingConfig:
     wrist_force_noise_n: float = 0.1
     load_filter_s: float = 0.02
     load_lost_fraction: float = 0.5
+    lifted_fraction: float = 0.8
     watch_period_s: float = 0.1
     rest_window_s: float = 0.2
 
@@ -228,6 +252,7 @@ class SensingConfig:
         check_range("sensing.wrist_force_noise_n", self.wrist_force_noise_n, 0.0, 10.0, unit="N")
         check_range("sensing.load_filter_s", self.load_filter_s, 0.0, 1.0, unit="s")
         check_range("sensing.load_lost_fraction", self.load_lost_fraction, 0.0, 1.0, lo_open=True)
+        check_range("sensing.lifted_fraction", self.lifted_fraction, 0.0, 1.0, lo_open=True)
         check_range("sensing.watch_period_s", self.watch_period_s, 0.001, 1.0, unit="s")
         check_range("sensing.rest_window_s", self.rest_window_s, 0.01, 2.0, unit="s")
 
@@ -246,7 +271,9 @@ class SensorObserver:
       nominal friction);
     * slip: the fingers closing further than where they settled; a lost object: the wrist no longer carrying
       its weight; its weight: the wrist's vertical force (zeroed as the gripper closes) less the hand's own
-      inertia, over ``g`` plus the hand's vertical acceleration (the tool's accelerometer).
+      weight and inertia, over ``g`` plus the hand's vertical acceleration (the tool's accelerometer; the
+      simulated wrist sensor is the force MuJoCo's ``cfrc_int`` gives between the flange and the hand, plus
+      the sensor's noise).
 
     Args:
         robot: The models: the robot's own kinematics and geometry, the object's model, the camera's render.
@@ -272,8 +299,9 @@ class SensorObserver:
         self._observed = pin.SE3.Identity()  # where it was when last observed
         self._seen = pin.SE3.Identity()  # where the latest re-check saw it
         self._T_tcp_object: pin.SE3 | None = None
-        self._checks: list[tuple[float, np.ndarray]] = []  # (time, position) of the camera's re-checks
+        self._checks: list[tuple[float, np.ndarray, bool]] = []  # (time, position, against the hand) of re-checks
         self._moved = 0.0
+        self._looked_at = -math.inf  # when the camera last re-checked (s)
         self._finger0 = 0.0
         self._tare = 0.0
         self._mass: float | None = None
@@ -287,12 +315,14 @@ class SensorObserver:
         """The resting object's pose from a camera image (:class:`ObjectNotSeen` if it is not seen); measured
         against the hand when the hand is next to it (``near`` given and within reach of the camera's view of
         the hand)."""
-        close = near is not None and float(np.linalg.norm(self._tcp_pose().translation - near.translation)) < 0.1
+        close = (near is not None
+                 and float(np.linalg.norm(self._tcp_pose().translation - near.translation)) < HAND_NEAR_M)
         est = self.camera.locate(self.d, near=near, from_hand=close)
         self.observations += 1
         self._belief = self._observed = self._seen = est.T_world_object
         self._T_tcp_object = None
-        self._checks = [(float(self.d.time), est.T_world_object.translation.copy())]
+        self._checks = [(float(self.d.time), est.T_world_object.translation.copy(), close)]
+        self._looked_at = float(self.d.time)
         self._moved = 0.0
         log.debug("observed the %s at (%.4f, %.4f) m, residual %.2f mm, %d points", self.robot.scene.object.name,
                   *est.T_world_object.translation[:2], est.residual_m * 1e3, est.points)
@@ -311,37 +341,44 @@ class SensorObserver:
         """The believed pose's origin (3,) (m)."""
         return self.object_pose().translation.copy()
 
-    def _recheck(self) -> None:
-        """A camera re-check of the resting object, if the last one is ``watch_period_s`` old."""
+    def _recheck(self, from_hand: bool) -> None:
+        """A camera re-check of the resting object, if the last one is ``watch_period_s`` old (``from_hand``:
+        measured against the hand next to it). An object the camera does not see (hidden by the hand over it)
+        gives no information: neither moved nor at rest."""
         t = float(self.d.time)
-        if self._checks and t - self._checks[-1][0] < self.sensing.watch_period_s - 1e-9:
+        if t - self._looked_at < self.sensing.watch_period_s - 1e-9:
             return
+        self._looked_at = t
         try:
-            est = self.camera.recheck(self.d, self._seen)
+            est = self.camera.recheck(self.d, self._seen, from_hand=from_hand)
         except ObjectNotSeen:  # not where it was: look over the whole table
             try:
-                est = self.camera.locate(self.d)
-            except ObjectNotSeen:
-                self._checks = []
-                self._moved = math.inf
+                est, from_hand = self.camera.locate(self.d), False
+            except ObjectNotSeen:  # hidden (by the hand over it, say): this image says nothing
                 return
         p = est.T_world_object.translation.copy()
         self._seen = est.T_world_object
-        self._checks.append((t, p))
-        self._moved = float(np.linalg.norm(p - self._observed.translation))
+        self._checks.append((t, p, from_hand))
+        if not from_hand:  # measured as the observation was: comparable with it
+            self._moved = float(np.linalg.norm(p - self._observed.translation))
 
     def moved_m(self) -> float:
-        """Distance of the camera's latest re-check from where the object was observed (m)."""
-        self._recheck()
+        """Distance of the camera's latest re-check from where the object was observed, both measured the same
+        way (m)."""
+        self._recheck(from_hand=False)
         return self._moved
 
     def object_velocity(self) -> np.ndarray:
-        """The motion between the latest re-check and one at least ``rest_window_s`` before it, over the time
-        between them (linear only; inf while there is no such pair yet)."""
-        self._recheck()
-        t, p = self._checks[-1] if self._checks else (math.nan, None)
-        older = [(tk, pk) for tk, pk in self._checks if t - tk >= self.sensing.rest_window_s - 1e-9]
-        if p is None or not older:
+        """The motion between the latest re-check and one at least ``rest_window_s`` before it measured the same
+        way (against the hand while the hand is near), over the time between them (linear only; inf while
+        there is no such pair yet)."""
+        near = float(np.linalg.norm(self._tcp_pose().translation - self._seen.translation)) < HAND_NEAR_M
+        self._recheck(from_hand=near)
+        if not self._checks:
+            return np.full(6, math.inf)
+        t, p, mode = self._checks[-1]
+        older = [(tk, pk) for tk, pk, mk in self._checks if mk == mode and t - tk >= self.sensing.rest_window_s - 1e-9]
+        if not older:
             return np.full(6, math.inf)
         tk, pk = older[-1]
         return np.concatenate([(p - pk) / (t - tk), np.zeros(3)])
@@ -355,8 +392,9 @@ class SensorObserver:
     # -- the gripper and the wrist ---------------------------------------------------------------------- #
 
     def closing(self) -> None:
-        """Zero the wrist sensor (the gripper empty, at rest above the object)."""
-        self._tare = self._wrist_force_z()
+        """Zero the wrist sensor with the gripper empty: what it reads less the hand's own weight and inertia
+        (the hand may still move a little as the arm settles)."""
+        self._tare = self._wrist_force_z() - self._hand_mass * (self._g + self._hand_acceleration_z())
 
     def grasped(self, T_tcp_object_model: pin.SE3) -> None:
         """In the hand where it was seen, centred between the pads along their closing axis (tcp y)."""
@@ -404,14 +442,39 @@ class SensorObserver:
         return float(acc[5]) - self._g  # it reads the specific force; less gravity's: the acceleration
 
     def load_sample(self) -> tuple[float, float, float]:
-        """The gripper's force, the wrist's vertical force less its zero and the hand's own inertia, and ``g``
-        plus the hand's vertical acceleration."""
+        """The gripper's force, the wrist's vertical force less its zero and the hand's own weight and inertia,
+        and ``g`` plus the hand's vertical acceleration."""
         a = self._hand_acceleration_z()
-        load = self._wrist_force_z() - self._tare - self._hand_mass * a
+        load = self._wrist_force_z() - self._tare - self._hand_mass * (self._g + a)
         return float(self.pad_forces().sum()), load, self._g + a
+
+    def airborne(self, z0_m: float, mass_kg: float) -> bool:
+        """The hand has risen 3 mm and the wrist carries at least ``lifted_fraction`` of the weight (low-passed
+        from the start of the lift: pads sliding along an object that stays on the table drag some of it)."""
+        load, expected = self._filtered_load(mass_kg)
+        return bool(self.object_position()[2] > z0_m + 0.003) and load >= self.sensing.lifted_fraction * expected
+
+    def touched_down(self, mass_kg: float) -> bool:
+        """The wrist carries less than ``load_lost_fraction`` of the weight: the table takes the rest (a guarded
+        set-down: the object's height in the hand is known to a millimetre or so, the table's touch exactly)."""
+        load, expected = self._filtered_load(mass_kg)
+        return load < self.sensing.load_lost_fraction * expected
+
+    def _filtered_load(self, mass_kg: float) -> tuple[float, float]:
+        """The wrist's load, low-passed (N), and what an object of ``mass_kg`` weighs now (N)."""
+        _, load, g_plus_a = self.load_sample()
+        t = float(self.d.time)
+        if math.isnan(self._load):
+            self._load, self._t_load = load, t
+        else:
+            tau = self.sensing.load_filter_s
+            self._load += (min(1.0, (t - self._t_load) / tau) if tau > 0 else 1.0) * (load - self._load)
+            self._t_load = t
+        return self._load, mass_kg * g_plus_a
 
     def start_holding(self) -> None:
         """The fingers' travel now is the reference."""
+        self._load = math.nan
         self._finger0 = gripper.finger_travel(self.robot, self.d)
 
     def slip_m(self) -> float:
@@ -421,23 +484,14 @@ class SensorObserver:
     def expect_load(self, mass_kg: float | None) -> None:
         """Watch the wrist for this weight from now on."""
         self._mass = mass_kg
-        self._load = math.nan
 
     def grip_lost(self) -> str | None:
         """The wrist carries less than ``load_lost_fraction`` of the weight (low-passed), or None."""
         if self._mass is None:
             return None
-        _, load, g_plus_a = self.load_sample()
-        t = float(self.d.time)
-        if math.isnan(self._load):
-            self._load, self._t_load = load, t
-        else:
-            alpha = min(1.0, (t - self._t_load) / self.sensing.load_filter_s) if self.sensing.load_filter_s else 1.0
-            self._load += alpha * (load - self._load)
-            self._t_load = t
-        expected = self._mass * g_plus_a
-        if self._load < self.sensing.load_lost_fraction * expected:
-            return (f"the wrist carries {self._load:.2f} N of the {self.robot.scene.object.name}'s "
+        load, expected = self._filtered_load(self._mass)
+        if load < self.sensing.load_lost_fraction * expected:
+            return (f"the wrist carries {load:.2f} N of the {self.robot.scene.object.name}'s "
                     f"{expected:.2f} N (less than {self.sensing.load_lost_fraction:.0%})")
         return None
 

@@ -55,6 +55,10 @@ from pickplace.world.mass import mass_properties
 log = logging.getLogger(__name__)
 
 
+class _SetDown(Exception):
+    """The table carries the object being set down (a guarded set-down ends here)."""
+
+
 class PickPlaceSkill:
     """Picks the scene's object where it rests and places it at its goal, phase by phase, on an arm.
 
@@ -206,10 +210,11 @@ class PickPlaceSkill:
         g_plus_a: list[float] = []
         monitor, observer = self.monitor, self.observer
         g = float(-self.robot.mj.opt.gravity[2])
+        mass_kg = self.arm.payload.mass_kg
 
         def hook(d: mujoco.MjData) -> None:
             monitor(d)
-            if monitor.allow_object_table and observer.object_position()[2] > z_object0 + 0.003:
+            if monitor.allow_object_table and observer.airborne(z_object0, mass_kg):
                 monitor.allow_object_table = False  # airborne: touching the table again is a failure
             if not monitor.allow_object_table:  # airborne: only the pads (and gravity) act on the object
                 normal, load, g_plus_a_now = observer.load_sample()
@@ -222,7 +227,7 @@ class PickPlaceSkill:
 
         try:
             rec = control.move_vertical(self.robot, self.d, target_z, self.arm.motion_config(),
-                                        payload=self.arm.payload, hook=hook, noise=self.arm.noise,
+                                        payload=self.arm.payload, hook=hook, noise=self.arm.noise, loop=self.arm.loop,
                                         raise_on_timeout=False)
         finally:  # a slip aborts the move: still report what the pads felt
             mass = measured_mass()
@@ -239,7 +244,7 @@ class PickPlaceSkill:
             self.arm.payload = dataclasses.replace(self.arm.payload, mass_kg=mass)
             self.arm.capacity = dataclasses.replace(self.arm.capacity, mass_kg=mass) if self.arm.capacity else None
             rec = control.move_vertical(self.robot, self.d, target_z, self.arm.motion_config(),
-                                        payload=self.arm.payload, hook=hook, noise=self.arm.noise,
+                                        payload=self.arm.payload, hook=hook, noise=self.arm.noise, loop=self.arm.loop,
                                         raise_on_timeout=False)
             self.arm.count(rec)
             mass = measured_mass()
@@ -248,14 +253,17 @@ class PickPlaceSkill:
         if not rec.reached:
             raise PhaseFailed(Phase.LIFT, f"the tcp stopped {rec.final_height_error_m * 1e3:.2f} mm from the lift "
                                           f"height (the {self.robot.scene.object.name} weighed {mass:.3f} kg)")
+        came_up = not self.monitor.allow_object_table
         self.monitor.allow_object_table = False
-        # airborne: the hand carries its weight (as weighed, if it could be)
-        self.observer.expect_load(mass if math.isfinite(mass) else self.arm.payload.mass_kg)
         rise = float(self._object_pose().translation[2]) - z_object0
         lifted = target_z - float(self.configs.targets.grasp.translation[2])
         if abs(rise - lifted) > self.cfg.slip_tolerance_m:
             raise GraspFailed(f"the {self.robot.scene.object.name} rose {rise * 1e3:.1f} mm while the tcp rose "
                               f"{lifted * 1e3:.1f} mm")
+        if not came_up:  # (a sensor that sees the object itself has said so above)
+            raise GraspFailed(f"the {self.robot.scene.object.name} did not come up with the hand: it weighed "
+                              f"{mass:.3f} kg of its {self.arm.payload.mass_kg:.3f} kg")
+        self.observer.expect_load(self.arm.payload.mass_kg)  # airborne: the hand carries its weight from now on
         self.arm.T_tcp_object = self.arm.tcp_pose().actInv(self._object_pose())  # as it sits in the hand
         self.arm.rise_until_clear(Phase.LIFT, lambda margin: self.arm.carrying(margin, False))
         return Phase.PLAN_TRANSPORT
@@ -306,14 +314,21 @@ class PickPlaceSkill:
             self.arm.execute(Phase.DESCEND_PLACE)
         monitor, observer = self.monitor, self.observer
         z_table_touch = self.robot.scene.resting_z_m(self.configs.targets.R_world_object_goal) + 0.003
+        mass_kg = self.arm.payload.mass_kg if self.arm.payload is not None else 0.0
 
         def hook(d: mujoco.MjData) -> None:
             if observer.object_position()[2] < z_table_touch:
                 monitor.allow_object_table = True  # setting it down
                 observer.expect_load(None)  # the table takes its weight
             monitor(d)
+            if monitor.allow_object_table and observer.touched_down(mass_kg):
+                raise _SetDown  # the table carries it: no need to go further
 
-        self.arm.vertical(Phase.DESCEND_PLACE, float(place.translation[2]), hook)
+        try:
+            self.arm.vertical(Phase.DESCEND_PLACE, float(place.translation[2]), hook)
+        except _SetDown:
+            log.debug("set down at t = %.3f s, the tcp %.2f mm above its target", monitor.t,
+                      (float(self.arm.tcp_pose().translation[2]) - float(place.translation[2])) * 1e3)
         return Phase.RELEASE
 
     def _release(self) -> Phase:

@@ -30,14 +30,11 @@ from pickplace.eval.bench import machine_info
 from pickplace.grasping.targets import object_yaw
 from pickplace.perception.camera import CameraConfig, DepthCamera, point_cloud, sensor_depth
 from pickplace.perception.pose import ObjectNotSeen, fit_resting_pose, observed_table_height, segment
+from pickplace.perception.view import MASK_MARGIN_PX
 from pickplace.robot.kinematics import rot_z, wrap_to_pi
 from pickplace.robot.model import build
 from pickplace.world.config import SceneConfig
 from pickplace.world.objects import LIBRARY
-
-#: Pixels by which the robot's self-filter is widened (its links are rendered from the calibrated camera pose,
-#: which is off by the calibration error: ~0.3 deg, 4 px at 848 x 480).
-MASK_MARGIN_PX = 4
 
 
 def _yaw_error(est: float, true: float, period: float) -> float:

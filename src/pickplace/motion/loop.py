@@ -1,0 +1,287 @@
+"""The control loop as the robot runs it: encoders, control rate, latency and zero-order hold.
+
+Every loop of :mod:`pickplace.motion.control` runs through :meth:`ControlLoop.run`. Physics steps at the
+model's timestep ``h`` (1 ms); the controller runs every ``control_period_s`` (a whole number of steps) and
+at each *tick*:
+
+1. reads the arm through its encoders (:meth:`ControlLoop` docstring: quantization to the encoder's
+   resolution, then Gaussian noise, then the :class:`~pickplace.motion.control.JointNoise` sensor fault if
+   any) and estimates the velocity by a first-order low-pass filter of the differences of those readings;
+2. evaluates the control law on that state and the reference at the tick;
+3. sends the (clipped) torque, which reaches the motors ``latency_s`` later and is held until the next one
+   arrives (zero-order hold).
+
+The monitor ``hook(d)`` is called after every physics step, ticks or not.
+
+With :class:`LoopConfig`'s defaults (every field 0, :attr:`LoopConfig.ideal`) the loop is today's ideal one:
+the law reads MuJoCo's exact ``qpos``/``qvel`` every physics step and its torque is applied in that same step.
+The ideal path performs exactly the operations the loops performed before this module existed, in the same
+order, so ideal episodes are unchanged bit for bit.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, NamedTuple
+
+import mujoco
+import numpy as np
+
+from pickplace.errors import ConfigError
+from pickplace.robot.model import Robot
+from pickplace.world.config import check_range
+
+if TYPE_CHECKING:
+    from pickplace.motion.control import JointNoise
+
+log = logging.getLogger(__name__)
+
+N_ARM = 6
+
+#: UR e-Series real-time control rate: the controller's real-time loop, and the RTDE interface that streams
+#: the joint state and takes commands, run at 500 Hz (Universal Robots, "Real-Time Data Exchange (RTDE)
+#: Guide", e-Series: up to 500 Hz; CB-Series 125 Hz), i.e. a 2 ms control period.
+UR_E_SERIES_CONTROL_PERIOD_S = 0.002
+#: Encoder resolution of the realistic profile (rad per count): a 18-bit absolute encoder, 2 pi / 2^18 =
+#: 2.4e-5 rad. UR does not publish its joints' encoder resolution; what it publishes is the UR5e's pose
+#: repeatability, +/- 0.03 mm (ISO 9283; UR5e technical specification). One count at the full 0.85 m reach
+#: moves the tcp 0.02 mm, just inside that figure, so the encoders cannot be coarser than about this.
+UR5E_ENCODER_RESOLUTION_RAD = 2.0 * math.pi / 2**18
+#: Encoder noise of the realistic profile (rad, standard deviation): half a count, 1.2e-5 rad (0.01 mm at
+#: the full reach), again bounded by the published +/- 0.03 mm repeatability (not a published noise figure).
+UR5E_ENCODER_NOISE_STD_RAD = 0.5 * UR5E_ENCODER_RESOLUTION_RAD
+#: Cut-off of the velocity filter of the realistic profile (Hz). A design choice of this controller, not a
+#: datasheet value: well below the 250 Hz Nyquist frequency of the 500 Hz loop, so that one encoder count per
+#: period (0.012 rad/s of raw difference) is attenuated, and high enough that its lag (1 / (2 pi f_c) = 1.6 ms)
+#: stays below the loop's own latency.
+VELOCITY_CUTOFF_HZ = 100.0
+
+#: A control law evaluated at a tick: ``law(k, q, qd)`` with ``k`` the physics step of the tick since the
+#: loop started (the reference index), ``q``/``qd`` the sensed arm state (6,); returns the unclipped arm
+#: torques (6,) (N m), which the loop may clip in place, or None to end the loop before stepping.
+Law = Callable[[int, np.ndarray, np.ndarray], "np.ndarray | None"]
+Hook = Callable[[mujoco.MjData], None]
+
+
+@dataclass(frozen=True)
+class LoopConfig:
+    """How the controller senses the arm and how often it acts (all fields 0: the ideal loop).
+
+    Attributes:
+        control_period_s: Control period (s), a whole number of physics steps; 0 runs the law every step.
+        latency_s: Delay from reading the encoders to the torque reaching the motors (s), a whole number of
+            physics steps; 0 applies it in the step it was computed.
+        encoder_resolution_rad: Encoder quantum (rad per count); 0 reads the exact position.
+        encoder_noise_std_rad: Standard deviation of Gaussian noise added to each reading (rad); needs a
+            seeded generator (:class:`ControlLoop`).
+        velocity_cutoff_hz: Cut-off (Hz) of the first-order low-pass filter applied to the differences of the
+            readings; 0 reads MuJoCo's exact joint velocities.
+    """
+
+    control_period_s: float = 0.0
+    latency_s: float = 0.0
+    encoder_resolution_rad: float = 0.0
+    encoder_noise_std_rad: float = 0.0
+    velocity_cutoff_hz: float = 0.0
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        set_(self, "control_period_s", check_range("loop.control_period_s", self.control_period_s, 0.0, 0.1,
+                                                   unit="s"))
+        set_(self, "latency_s", check_range("loop.latency_s", self.latency_s, 0.0, 0.1, unit="s"))
+        set_(self, "encoder_resolution_rad", check_range("loop.encoder_resolution_rad", self.encoder_resolution_rad,
+                                                         0.0, 0.01, unit="rad"))
+        set_(self, "encoder_noise_std_rad", check_range("loop.encoder_noise_std_rad", self.encoder_noise_std_rad,
+                                                        0.0, 0.01, unit="rad"))
+        set_(self, "velocity_cutoff_hz", check_range("loop.velocity_cutoff_hz", self.velocity_cutoff_hz,
+                                                     0.0, 1e4, unit="Hz"))
+        if self.velocity_cutoff_hz > 0.0 and self.control_period_s > 0.0 \
+                and self.velocity_cutoff_hz >= 0.5 / self.control_period_s:
+            raise ConfigError("loop.velocity_cutoff_hz", self.velocity_cutoff_hz,
+                              f"must be < {0.5 / self.control_period_s:g} Hz, the Nyquist frequency of the "
+                              f"{self.control_period_s:g} s control period")
+
+    @classmethod
+    def realistic(cls) -> LoopConfig:
+        """The UR5e as it runs: 500 Hz, one period of latency, 18-bit encoders with half a count of noise,
+        velocity filtered at 100 Hz (sources: :data:`UR_E_SERIES_CONTROL_PERIOD_S`,
+        :data:`UR5E_ENCODER_RESOLUTION_RAD`, :data:`UR5E_ENCODER_NOISE_STD_RAD`, :data:`VELOCITY_CUTOFF_HZ`)."""
+        return cls(control_period_s=UR_E_SERIES_CONTROL_PERIOD_S, latency_s=UR_E_SERIES_CONTROL_PERIOD_S,
+                   encoder_resolution_rad=UR5E_ENCODER_RESOLUTION_RAD,
+                   encoder_noise_std_rad=UR5E_ENCODER_NOISE_STD_RAD, velocity_cutoff_hz=VELOCITY_CUTOFF_HZ)
+
+    @property
+    def ideal(self) -> bool:
+        """Every field off: exact state every physics step, torque applied at once."""
+        return (self.control_period_s == 0.0 and self.latency_s == 0.0 and self.encoder_resolution_rad == 0.0
+                and self.encoder_noise_std_rad == 0.0 and self.velocity_cutoff_hz == 0.0)
+
+    def steps(self, timestep_s: float) -> tuple[int, int]:
+        """``(period, latency)`` in physics steps of ``timestep_s`` (s).
+
+        Raises:
+            ConfigError: the period or the latency is not a whole number of steps.
+        """
+        def whole(name: str, value: float, at_least: int) -> int:
+            n = round(value / timestep_s)
+            if abs(n * timestep_s - value) > 1e-9 * max(1.0, value):
+                raise ConfigError(f"loop.{name}", value, f"must be a whole number of {timestep_s:g} s physics steps")
+            return max(at_least, n)
+
+        return whole("control_period_s", self.control_period_s, 1), whole("latency_s", self.latency_s, 0)
+
+
+class LoopRun(NamedTuple):
+    """What :meth:`ControlLoop.run` did.
+
+    Attributes:
+        steps: Physics steps taken.
+        ticks: Control ticks (law evaluations that returned a torque).
+    """
+
+    steps: int
+    ticks: int
+
+
+@dataclass(frozen=True, eq=False)
+class ControlLoop:
+    """A control loop's configuration and its noise source: pass one to every motion of
+    :mod:`pickplace.motion.control` (``loop=``).
+
+    Each motion starts a fresh loop state: the first tick is at the motion's first step; the velocity filter
+    starts warm (its estimate at the arm's velocity, its last reading the first one); the torque already in
+    ``data.ctrl`` (the previous motion's last one) is held until the first new torque arrives.
+
+    Readings: ``q = round(q_true / resolution) * resolution + noise`` (+ the sensor fault's noise), i.e.
+    encoder counts plus noise; velocity ``v += a (dq / T - v)``, ``a = 1 - exp(-2 pi f_c T)``, T the control
+    period.
+
+    Attributes:
+        config: The loop.
+        rng: Seeded generator of the encoder noise (required when ``config.encoder_noise_std_rad > 0``).
+    """
+
+    config: LoopConfig = field(default_factory=LoopConfig)
+    rng: np.random.Generator | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.config, LoopConfig):
+            raise ConfigError("loop.config", self.config, "must be a LoopConfig")
+        if self.config.encoder_noise_std_rad > 0.0 and not isinstance(self.rng, np.random.Generator):
+            raise ConfigError("loop.rng", self.rng, "must be a seeded numpy.random.Generator when "
+                                                    "loop.encoder_noise_std_rad > 0")
+
+    @property
+    def ideal(self) -> bool:
+        """Whether this is the ideal loop (see :attr:`LoopConfig.ideal`)."""
+        return self.config.ideal
+
+    def period_s(self, robot: Robot) -> float:
+        """The control period (s) on ``robot``'s physics timestep."""
+        return self.config.steps(float(robot.mj.opt.timestep))[0] * float(robot.mj.opt.timestep)
+
+    def run(
+        self,
+        robot: Robot,
+        d: mujoco.MjData,
+        law: Law,
+        hook: Hook | None,
+        noise: JointNoise | None = None,
+    ) -> LoopRun:
+        """Run ``law`` until it returns None, stepping the physics underneath.
+
+        Args:
+            robot: The models.
+            d: MuJoCo data, advanced in place; only the six arm motors' controls are written.
+            law: The control law (:data:`Law`); it clips its torques to the motors' limits itself.
+            hook: Called with ``d`` after every physics step; may raise to abort.
+            noise: The sensor fault (noise added to the positions read), or None.
+
+        Returns:
+            The :class:`LoopRun`.
+        """
+        m, h = robot.mj, robot.handles
+        qpos, qvel, ctrl = d.qpos, d.qvel, d.ctrl  # arrays aliasing d's memory
+        arm_q, arm_v, arm_u = _selector(h.arm_qpos), _selector(h.arm_dof), _selector(h.arm_actuators)
+        ticks = 0
+        k = 0
+        if self.config.ideal:
+            # today's loop, operation for operation: exact state, torque applied in the same step
+            while True:
+                q = qpos[arm_q] if noise is None else qpos[arm_q] + noise.sample()
+                tau = law(k, q, qvel[arm_v])
+                if tau is None:
+                    return LoopRun(k, ticks)
+                ticks += 1
+                ctrl[arm_u] = tau
+                mujoco.mj_step(m, d)
+                if hook is not None:
+                    hook(d)
+                k += 1
+
+        cfg = self.config
+        dt = float(m.opt.timestep)
+        period, latency = cfg.steps(dt)
+        T = period * dt
+        res, std = cfg.encoder_resolution_rad, cfg.encoder_noise_std_rad
+        alpha = 1.0 - math.exp(-2.0 * math.pi * cfg.velocity_cutoff_hz * T) if cfg.velocity_cutoff_hz > 0 else 0.0
+        pending: deque[tuple[int, np.ndarray]] = deque()
+        q_prev: np.ndarray | None = None
+        v_est = np.array(qvel[arm_v])  # a warm filter: the estimate starts at the arm's velocity
+
+        while True:
+            if k % period == 0:
+                q = np.array(qpos[arm_q])
+                if res > 0.0:
+                    q = np.round(q / res) * res
+                if std > 0.0:
+                    assert self.rng is not None
+                    q += self.rng.normal(0.0, std, N_ARM)
+                if noise is not None:
+                    q += noise.sample()
+                if alpha > 0.0:
+                    if q_prev is not None:
+                        v_est += alpha * ((q - q_prev) / T - v_est)
+                    q_prev = q
+                    qd = v_est.copy()
+                else:
+                    qd = np.array(qvel[arm_v])
+                tau = law(k, q, qd)
+                if tau is None:
+                    return LoopRun(k, ticks)
+                ticks += 1
+                pending.append((k + latency, np.array(tau)))
+            while pending and pending[0][0] <= k:
+                ctrl[arm_u] = pending.popleft()[1]
+            mujoco.mj_step(m, d)
+            if hook is not None:
+                hook(d)
+            k += 1
+
+
+def _selector(idx: np.ndarray) -> slice | np.ndarray:
+    """A slice for consecutive indices (a view, cheaper than fancy indexing every step), else the indices."""
+    idx = np.asarray(idx)
+    if idx.size and (np.diff(idx) == 1).all():
+        return slice(int(idx[0]), int(idx[-1]) + 1)
+    return idx
+
+
+#: The ideal loop (no noise source needed).
+IDEAL = ControlLoop()
+
+__all__ = [
+    "IDEAL",
+    "UR5E_ENCODER_NOISE_STD_RAD",
+    "UR5E_ENCODER_RESOLUTION_RAD",
+    "UR_E_SERIES_CONTROL_PERIOD_S",
+    "VELOCITY_CUTOFF_HZ",
+    "ControlLoop",
+    "Law",
+    "LoopConfig",
+    "LoopRun",
+]
