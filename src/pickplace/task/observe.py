@@ -306,6 +306,7 @@ class SensorObserver:
         self._tare = 0.0
         self._mass: float | None = None
         self._load = math.nan
+        self._g_plus_a = math.nan
         self._t_load = math.nan
         self.observations = 0
 
@@ -394,7 +395,8 @@ class SensorObserver:
     def closing(self) -> None:
         """Zero the wrist sensor with the gripper empty: what it reads less the hand's own weight and inertia
         (the hand may still move a little as the arm settles)."""
-        self._tare = self._wrist_force_z() - self._hand_mass * (self._g + self._hand_acceleration_z())
+        f, a = self._wrist()
+        self._tare = f - self._hand_mass * (self._g + a)
 
     def grasped(self, T_tcp_object_model: pin.SE3) -> None:
         """In the hand where it was seen, centred between the pads along their closing axis (tcp y)."""
@@ -429,24 +431,37 @@ class SensorObserver:
                                obj.torsional_friction_m))
         return out
 
-    def _wrist_force_z(self) -> float:
-        """The wrist sensor's vertical force on the hand (N), with the sensor's noise."""
-        mujoco.mj_rnePostConstraint(self.robot.mj, self.d)
+    def _wrist(self) -> tuple[float, float]:
+        """The wrist sensor's vertical force on the hand (N), with the sensor's noise, and the tool
+        accelerometer's vertical acceleration of the hand's centre of mass (m/s^2), read together."""
+        mujoco.mj_rnePostConstraint(self.robot.mj, self.d)  # the forces and accelerations of this state
         f = float(self.d.cfrc_int[self._hand, 5])  # the wrist's force on the hand (world frame)
-        return f + float(self.rng.normal(0.0, self.sensing.wrist_force_noise_n))
+        a = self._hand_acceleration_z(self.d.subtree_com[self._hand])
+        return f + float(self.rng.normal(0.0, self.sensing.wrist_force_noise_n)), a
 
-    def _hand_acceleration_z(self) -> float:
-        """The tool's accelerometer: the hand's vertical acceleration (m/s^2)."""
+    def _hand_acceleration_z(self, at: np.ndarray | None = None) -> float:
+        """The tool's accelerometer: the hand's vertical acceleration (m/s^2) at its origin, or carried to the
+        point ``at`` (3,) (m) of the hand (rigid-body kinematics with the hand's angular velocity and
+        acceleration: where the held object is). Reads the accelerations of the last
+        ``mj_rnePostConstraint`` (:meth:`_wrist`)."""
+        m, d = self.robot.mj, self.d
         acc = np.zeros(6)
-        mujoco.mj_objectAcceleration(self.robot.mj, self.d, mujoco.mjtObj.mjOBJ_BODY, self._hand, acc, 0)
-        return float(acc[5]) - self._g  # it reads the specific force; less gravity's: the acceleration
+        mujoco.mj_objectAcceleration(m, d, mujoco.mjtObj.mjOBJ_BODY, self._hand, acc, 0)
+        a = acc[3:] - np.array([0.0, 0.0, self._g])  # it reads the specific force; less gravity's: the acceleration
+        if at is not None:
+            vel = np.zeros(6)
+            mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, self._hand, vel, 0)
+            r = at - d.xpos[self._hand]
+            a = a + np.cross(acc[:3], r) + np.cross(vel[:3], np.cross(vel[:3], r))
+        return float(a[2])
 
     def load_sample(self) -> tuple[float, float, float]:
         """The gripper's force, the wrist's vertical force less its zero and the hand's own weight and inertia,
-        and ``g`` plus the hand's vertical acceleration."""
-        a = self._hand_acceleration_z()
-        load = self._wrist_force_z() - self._tare - self._hand_mass * (self._g + a)
-        return float(self.pad_forces().sum()), load, self._g + a
+        and ``g`` plus the held object's vertical acceleration (where the robot believes it is in the hand)."""
+        f, a = self._wrist()
+        load = f - self._tare - self._hand_mass * (self._g + a)
+        a_object = self._hand_acceleration_z(self.object_position()) if self._T_tcp_object is not None else a
+        return float(self.pad_forces().sum()), load, self._g + a_object
 
     def airborne(self, z0_m: float, mass_kg: float) -> bool:
         """The hand has risen 3 mm and the wrist carries at least ``lifted_fraction`` of the weight (low-passed
@@ -461,16 +476,19 @@ class SensorObserver:
         return load < self.sensing.load_lost_fraction * expected
 
     def _filtered_load(self, mass_kg: float) -> tuple[float, float]:
-        """The wrist's load, low-passed (N), and what an object of ``mass_kg`` weighs now (N)."""
+        """The wrist's load and what an object of ``mass_kg`` weighs with the accelerations now (N), both
+        low-passed alike."""
         _, load, g_plus_a = self.load_sample()
         t = float(self.d.time)
         if math.isnan(self._load):
-            self._load, self._t_load = load, t
+            self._load, self._g_plus_a, self._t_load = load, g_plus_a, t
         else:
             tau = self.sensing.load_filter_s
-            self._load += (min(1.0, (t - self._t_load) / tau) if tau > 0 else 1.0) * (load - self._load)
+            alpha = min(1.0, (t - self._t_load) / tau) if tau > 0 else 1.0
+            self._load += alpha * (load - self._load)
+            self._g_plus_a += alpha * (g_plus_a - self._g_plus_a)
             self._t_load = t
-        return self._load, mass_kg * g_plus_a
+        return self._load, mass_kg * self._g_plus_a
 
     def start_holding(self) -> None:
         """The fingers' travel now is the reference."""

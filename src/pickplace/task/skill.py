@@ -362,19 +362,19 @@ class PickPlaceSkill:
         self.monitor.allow_hand_object = False
         self._measure_place()
         xy, z, yaw = self._place_errors(self._observe(near=observer.object_pose()))
+        name = robot.scene.object.name
+        wrong = []  # every check that fails, so that one does not hide another
         if xy > cfg.place_tolerance_xy_m:
-            raise PhaseFailed(Phase.RELEASE, f"the {robot.scene.object.name} rests "
-                                             f"{xy * 1e3:.2f} mm from the goal "
-                                             f"(tolerance {cfg.place_tolerance_xy_m * 1e3:.2f} mm)")
+            wrong.append(f"the {name} rests {xy * 1e3:.2f} mm from the goal "
+                         f"(tolerance {cfg.place_tolerance_xy_m * 1e3:.2f} mm)")
         if abs(z) > cfg.place_tolerance_z_m:
-            raise PhaseFailed(Phase.RELEASE, f"the {robot.scene.object.name} rests "
-                                             f"{z * 1e3:.2f} mm above the "
-                                             "table (it should sit on it; tolerance "
-                                             f"{cfg.place_tolerance_z_m * 1e3:.2f} mm)")
+            wrong.append(f"the {name} rests {z * 1e3:.2f} mm above the table (it should sit on it; tolerance "
+                         f"{cfg.place_tolerance_z_m * 1e3:.2f} mm)")
         if abs(yaw) > cfg.place_tolerance_yaw_rad:
-            raise PhaseFailed(Phase.RELEASE, f"the {robot.scene.object.name}'s yaw is "
-                                             f"{yaw:.3f} rad off the "
-                                             f"goal's (tolerance {cfg.place_tolerance_yaw_rad:.3f} rad)")
+            wrong.append(f"the {name}'s yaw is {yaw:.3f} rad off the goal's (tolerance "
+                         f"{cfg.place_tolerance_yaw_rad:.3f} rad)")
+        if wrong:
+            raise PhaseFailed(Phase.RELEASE, "; ".join(wrong))
         return Phase.RETRACT
 
     def _place_errors(self, T_world_object: pin.SE3) -> tuple[float, float, float]:
