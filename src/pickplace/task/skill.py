@@ -11,8 +11,10 @@ outcome, and a monitor runs after *every* simulation step of every phase
 * unexpected contacts: the arm or the gripper touching the table, the floor, an obstacle or itself; the
   object carried into the table, a wall or the floor; the gripper touching the object while it approaches it.
   The failure names the geoms.
-* slip: from the end of CLOSE until RELEASE, the object's position in the tcp frame is compared with the
-  one measured when the grip settled; moving more than ``MachineConfig.slip_tolerance_m`` fails the phase.
+* slip: from the end of CLOSE until RELEASE, the grip is compared with the one measured when it settled
+  (the object's position in the tcp frame in the ideal profile; the fingers' travel and the wrist's load in
+  the realistic one, :mod:`pickplace.task.observe`); more than ``MachineConfig.slip_tolerance_m``, or a lost
+  load, fails the phase.
 
 The skill decides; its :class:`~pickplace.task.arm.Arm` moves (and keeps the clock and the record), so that a
 task with several objects can run one skill per object on the same arm. The object and its goal are the
