@@ -98,6 +98,7 @@ def test_bad_option_is_a_clear_error(argv: list[str], option: str, capsys: pytes
     assert option in capsys.readouterr().err
 
 
+@pytest.mark.slow  # two whole realistic episodes (~11 s); the summary logic above is tested without them
 def test_quick_run(tmp_path) -> None:
     """Two grid points x 1 trial of real realistic episodes, on 2 spawned workers."""
     cfg = bench.SensingBenchConfig(subpixel_px=(0.08, 0.32), calibration_scales=(1.0,), trials=1, workers=2)
