@@ -140,7 +140,8 @@ class TableCamera:
 
     def __init__(self, robot: Robot, config: CameraConfig, rng: np.random.Generator) -> None:
         self.robot, self.config, self.rng = robot, config, rng
-        self.real = config.drawn(rng)
+        self.real = config
+        self.draw_calibration()
         self.camera = DepthCamera(robot, config)
         m, h, scene = robot.mj, robot.handles, robot.scene
         unknown = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name) for name in ("table", INTRUDER)}
@@ -158,6 +159,10 @@ class TableCamera:
         self._radius_m = float(np.linalg.norm(hi - lo)) / 2 + SEARCH_MARGIN_M
         self.images = 0
         self.wall_s = 0.0
+
+    def draw_calibration(self) -> None:
+        """Draw where the camera really is again (a new calibration error, from the generator)."""
+        self.real = self.config.drawn(self.rng)
 
     def close(self) -> None:
         """Release the OpenGL context."""
@@ -194,9 +199,10 @@ class TableCamera:
         sensor sees the robot (:func:`register_offset` on the robot's model of itself near the tcp)."""
         own = self.camera.render_depth(d, hide_object=True)  # its model of itself, where it believes
         tcp = d.site_xpos[self.robot.handles.tcp_site]
-        hand = np.zeros(known.shape, dtype=bool)
-        hand[own > 0.0] = np.linalg.norm(point_cloud(own, self.config) - tcp, axis=1) < HAND_RADIUS_M
-        offset, shift = register_offset(depth, own, known & hand, self.config)
+        own_px = known & (own > 0.0)
+        hand = np.zeros(known.shape, dtype=bool)  # its own pixels near the tcp (only those back-projected)
+        hand[own_px] = np.linalg.norm(point_cloud(own, self.config, own_px) - tcp, axis=1) < HAND_RADIUS_M
+        offset, shift = register_offset(depth, own, hand, self.config)
         moved = ndimage.shift(known, (shift[1], shift[0]), order=0, mode="constant", cval=False)
         return offset, ndimage.binary_dilation(moved, iterations=2)
 

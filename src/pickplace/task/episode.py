@@ -85,10 +85,8 @@ class EpisodeConfig:
         for name, cls in _SECTIONS.items():
             if not isinstance(getattr(self, name), cls):
                 raise ConfigError(name, getattr(self, name), f"must be a {cls.__name__}")
-        if not self.profile.loop.ideal and self.control == ControlConfig():
-            # the ideal gains do not hold a 500 Hz loop with latency (ControlConfig.realistic says why): a
-            # realistic loop's default gains are the realistic ones
-            object.__setattr__(self, "control", ControlConfig.realistic())
+        if self.control == ControlConfig():  # the default gains: the profile's (ProfileConfig.control_defaults)
+            object.__setattr__(self, "control", self.profile.control_defaults())
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> EpisodeConfig:
@@ -129,7 +127,7 @@ class EpisodeConfig:
         profile = ProfileConfig.named(name)
         control = self.control
         if control in (ControlConfig(), ControlConfig.realistic()):
-            control = ControlConfig.realistic() if not profile.loop.ideal else ControlConfig()
+            control = profile.control_defaults()
         return dataclasses.replace(self, profile=profile, control=control)
 
     def with_scene(self, **changes: Any) -> EpisodeConfig:
@@ -159,12 +157,12 @@ _SECTIONS: dict[str, type] = {"scene": SceneConfig, "machine": MachineConfig, "c
 
 
 def _base(section_cls: type, profile: ProfileConfig) -> Any:
-    """The defaults a TOML table starts from: the UR5e's limits for ``[timing]``, the realistic gains for
-    ``[control]`` in the realistic profile; None (the class's own defaults) otherwise."""
+    """The defaults a TOML table starts from: the UR5e's limits for ``[timing]``, the profile's gains for
+    ``[control]`` (:meth:`ProfileConfig.control_defaults`); None (the class's own defaults) otherwise."""
     if section_cls is TimingConfig:
         return TimingConfig.ur5e()
-    if section_cls is ControlConfig and profile.realistic:
-        return ControlConfig.realistic()
+    if section_cls is ControlConfig:
+        return profile.control_defaults()
     return None
 
 

@@ -294,6 +294,7 @@ class SensorObserver:
         self._tcp = h.tcp_site
         self._hand = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "gripper_base")
         self._hand_mass = float(m.body_subtreemass[self._hand])
+        self._gripper = gripper.GripperGeometry.measure(robot)  # its pads, for the grasp model's contacts
         self._g = float(-m.opt.gravity[2])
         self._belief = pin.SE3.Identity()  # where the robot believes the resting object is
         self._observed = pin.SE3.Identity()  # where it was when last observed
@@ -316,8 +317,7 @@ class SensorObserver:
         """The resting object's pose from a camera image (:class:`ObjectNotSeen` if it is not seen); measured
         against the hand when the hand is next to it (``near`` given and within reach of the camera's view of
         the hand)."""
-        close = (near is not None
-                 and float(np.linalg.norm(self._tcp_pose().translation - near.translation)) < HAND_NEAR_M)
+        close = near is not None and self._hand_near(near)
         est = self.camera.locate(self.d, near=near, from_hand=close)
         self.observations += 1
         self._belief = self._observed = self._seen = est.T_world_object
@@ -328,6 +328,11 @@ class SensorObserver:
         log.debug("observed the %s at (%.4f, %.4f) m, residual %.2f mm, %d points", self.robot.scene.object.name,
                   *est.T_world_object.translation[:2], est.residual_m * 1e3, est.points)
         return est.T_world_object
+
+    def _hand_near(self, T_world_object: pin.SE3) -> bool:
+        """Whether the tcp is within ``HAND_NEAR_M`` of the object at this pose (the camera can measure it
+        against the hand)."""
+        return float(np.linalg.norm(self.d.site_xpos[self._tcp] - T_world_object.translation)) < HAND_NEAR_M
 
     def _tcp_pose(self) -> pin.SE3:
         return pin.SE3(self.d.site_xmat[self._tcp].reshape(3, 3).copy(), self.d.site_xpos[self._tcp].copy())
@@ -373,7 +378,7 @@ class SensorObserver:
         """The motion between the latest re-check and one at least ``rest_window_s`` before it measured the same
         way (against the hand while the hand is near), over the time between them (linear only; inf while
         there is no such pair yet)."""
-        near = float(np.linalg.norm(self._tcp_pose().translation - self._seen.translation)) < HAND_NEAR_M
+        near = self._hand_near(self._seen)
         self._recheck(from_hand=near)
         if not self._checks:
             return np.full(6, math.inf)
@@ -419,7 +424,7 @@ class SensorObserver:
 
     def pad_contacts(self) -> list[Contact]:
         """One soft contact at the middle of each pad's face, on the object (the grasp model's)."""
-        geom = gripper.GripperGeometry.measure(self.robot)
+        geom = self._gripper
         obj = self.robot.scene.object
         tcp = self._tcp_pose()
         face = geom.open_inner_face_y_m - gripper.finger_travel(self.robot, self.d)

@@ -44,6 +44,7 @@ import mujoco
 import numpy as np
 
 from pickplace.errors import ConfigError
+from pickplace.motion.control import ControlConfig
 from pickplace.motion.loop import ControlLoop, LoopConfig
 from pickplace.perception.camera import CameraConfig
 from pickplace.robot.gripper import GripperConfig, with_gripper
@@ -142,6 +143,12 @@ class ProfileConfig:
             rng: Seeded generator of the model error.
         """
         return with_gripper(with_model_error(robot, self.model_error, rng), self.gripper)
+
+    def control_defaults(self) -> ControlConfig:
+        """The controller's default gains for this profile's loop: :meth:`ControlConfig.realistic` for a
+        realistic loop (the ideal gains do not hold a 500 Hz loop with latency; it says why), the ideal ones
+        otherwise."""
+        return ControlConfig() if self.loop.ideal else ControlConfig.realistic()
 
     def control_loop(self, rng: np.random.Generator) -> ControlLoop | None:
         """The control loop of this profile (None: the ideal loop).

@@ -2,14 +2,13 @@
 
 For each object, ``--trials`` scenes: the object resting at a random place around the default start (±5 cm)
 and a random yaw, seen by the default camera (Intel RealSense D435 model, :class:`CameraConfig`) whose real
-pose carries a calibration error drawn per trial (:meth:`CameraConfig.drawn`). The depth image is rendered
-from the real pose with the sensor's noise; the robot back-projects it with the *calibrated* pose, leaves out
-its own links (rendered from the calibrated pose too, widened by ``MASK_MARGIN_PX``), segments the object
-(no higher than 1.5 times its largest extent) on the table as it sees it (its heights measured from the
-observed table top) and fits its resting pose
-(:mod:`pickplace.perception.pose`). Reported per object, against the simulator's truth (which the fit never
-sees): median and p95 of the position error (horizontal) and of the yaw error (modulo the object's
-symmetry), the fit's RMS residual, the trials where the object was not seen, and the wall time per estimate.
+pose carries a calibration error drawn per trial (:meth:`CameraConfig.drawn`). The robot locates the object as
+it does before a pick (:meth:`~pickplace.perception.view.TableCamera.locate`): the depth image rendered from the
+real pose with the sensor's noise, back-projected with the *calibrated* pose, its own links left out, the
+object segmented on the table as it sees it and its resting pose fitted (:mod:`pickplace.perception.pose`).
+Reported per object, against the simulator's truth (which the fit never sees): median and p95 of the position
+error (horizontal) and of the yaw error (modulo the object's symmetry), the fit's RMS residual, the trials
+where the object was not seen, and the wall time per estimate (rendering included).
 
 Usage: ``pickplace bench perception [--json] [--trials N] [--objects NAME ...] [--seed S]``.
 """
@@ -24,24 +23,16 @@ from typing import Any
 
 import mujoco
 import numpy as np
-from scipy import ndimage
 
 from pickplace.eval.bench import machine_info
-from pickplace.grasping.targets import object_yaw
-from pickplace.perception.camera import CameraConfig, DepthCamera, point_cloud, sensor_depth
-from pickplace.perception.pose import ObjectNotSeen, fit_resting_pose, observed_table_height, segment
-from pickplace.perception.view import MASK_MARGIN_PX
-from pickplace.robot.kinematics import rot_z, wrap_to_pi
+from pickplace.grasping.targets import yaw_error
+from pickplace.perception.camera import CameraConfig
+from pickplace.perception.pose import ObjectNotSeen
+from pickplace.perception.view import TableCamera
+from pickplace.robot.kinematics import rot_z
 from pickplace.robot.model import build
 from pickplace.world.config import SceneConfig
 from pickplace.world.objects import LIBRARY
-
-
-def _yaw_error(est: float, true: float, period: float) -> float:
-    if period <= 0.0:
-        return 0.0
-    k = 2 * np.pi / period
-    return float(wrap_to_pi(k * (est - true))) / k
 
 
 def run_object(name: str, trials: int, seed: int, camera: CameraConfig | None = None) -> dict[str, Any]:
@@ -50,46 +41,35 @@ def run_object(name: str, trials: int, seed: int, camera: CameraConfig | None = 
     scene = SceneConfig(object=LIBRARY[name])
     robot = build(scene)
     d = robot.make_data()
-    own = frozenset(robot.handles.robot_bodies) | frozenset(robot.handles.gripper_bodies)
-    centre, half = np.asarray(scene.table_center_xy_m), np.asarray(scene.table_size_xy_m) / 2
-    clearance = 4 * float(cfg.depth_sigma_m(1.0))
-    tallest = 1.5 * float(np.max(scene.object.geometry().extent_m))
-    believed = DepthCamera(robot, cfg)
     rng = np.random.default_rng(seed)
+    view = TableCamera(robot, cfg, rng)
     a = robot.handles.object_qpos
     pos_err, yaw_err, residual, wall = [], [], [], []
     not_seen = 0
     try:
         for _ in range(trials):
             xy = np.asarray(scene.start_xy_m) + rng.uniform(-0.05, 0.05, 2)
-            yaw = float(rng.uniform(-np.pi, np.pi))
+            R = rot_z(float(rng.uniform(-np.pi, np.pi)))
             mujoco.mj_resetDataKeyframe(robot.mj, d, 0)
             d.qpos[a:a + 3] = [xy[0], xy[1], scene.rest_z_m]
             quat = np.empty(4)
-            mujoco.mju_mat2Quat(quat, rot_z(yaw).ravel())
+            mujoco.mju_mat2Quat(quat, R.ravel())
             d.qpos[a + 3:a + 7] = quat
             mujoco.mj_forward(robot.mj, d)
-            exact = believed.render_depth(d, seen_from=cfg.drawn(rng))  # from where the camera really is
+            view.draw_calibration()  # a calibration error per trial
             t0 = time.perf_counter()
-            depth = sensor_depth(exact, cfg, rng)
-            # the robot's own links, rendered where it believes the camera is, widened by a few pixels for the
-            # calibration error
-            mask = ndimage.binary_dilation(believed.render_mask(d, own), iterations=MASK_MARGIN_PX)
-            cloud = point_cloud(depth, cfg, ~mask)
-            box = (centre - half, centre + half)
             try:
-                table = observed_table_height(cloud, scene.table_height_m, box)
-                est = fit_resting_pose(segment(cloud, table, box, clearance, tallest), scene.object, table, rng)
+                est = view.locate(d)
             except ObjectNotSeen:
                 not_seen += 1
                 continue
             wall.append(time.perf_counter() - t0)
             T = est.T_world_object
             pos_err.append(float(np.hypot(*(T.translation[:2] - xy))))
-            yaw_err.append(abs(_yaw_error(object_yaw(T.rotation), yaw, scene.object.yaw_period_rad)))
+            yaw_err.append(abs(yaw_error(T.rotation, R, scene.object.yaw_period_rad)))
             residual.append(est.residual_m)
     finally:
-        believed.close()
+        view.close()
 
     def stats(v: list[float]) -> dict[str, float]:
         return {"median": float(np.median(v)), "p95": float(np.percentile(v, 95)), "max": float(np.max(v))} if v \

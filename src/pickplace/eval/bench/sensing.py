@@ -62,6 +62,7 @@ from pickplace.errors import ConfigError
 from pickplace.eval.bench import machine_info
 from pickplace.eval.campaign import CampaignConfig, RandomizationSpec, Trial, make_trial, wilson_interval
 from pickplace.eval.campaign.backends import run_local
+from pickplace.eval.campaign.store import json_ready
 from pickplace.perception.camera import CameraConfig
 from pickplace.task.episode import EpisodeConfig, run_episode
 from pickplace.world.config import check_int, check_range
@@ -304,7 +305,7 @@ class SensingBenchResult:
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready data (NaN becomes None), with the conditions."""
         cam = self.config.camera
-        return _plain({
+        return json_ready({
             "benchmark": "sensing",
             "conditions": self.conditions(),
             "profile": "realistic",
@@ -328,16 +329,6 @@ def _randomization_text(spec: RandomizationSpec) -> str:
     if spec.objects is not None:
         parts.append(f"object one of {', '.join(spec.objects)}")
     return ", ".join(parts) or "nothing"
-
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 # --------------------------------------------------------------------------- #
