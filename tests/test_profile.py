@@ -157,8 +157,10 @@ def test_a_realistic_episode_never_reads_the_simulators_object_state(monkeypatch
     assert poisoned.place_error_xy_m == clean.place_error_xy_m
     assert clean.place_error_xy_m < 0.003
     what = [w for _, w, _, _ in clean.pose_estimates]
-    assert what == ["resting", "in hand", "resting"]  # the pick, the re-aim above the goal, the place check
+    # the pick, the look from the hand above it, the re-aim above the goal, the place check
+    assert what == ["resting", "from the hand", "in hand", "resting"]
     assert all(err < 0.015 for _, _, err, _ in clean.pose_estimates)  # a few mm: the camera's, not the truth
+    assert all(err < 0.004 for _, w, err, _ in clean.pose_estimates[1:])  # against the hand: calibration cancels
     assert abs(clean.measured_mass_kg / REALISTIC.scene.object.mass_kg - 1.0) < 0.15  # weighed at the wrist
 
 

@@ -210,33 +210,40 @@ def fit_resting_pose(points: np.ndarray, obj: ObjectConfig, table_height_m: floa
 
 
 def fit_held_pose(points: np.ndarray, obj: ObjectConfig, guess: pin.SE3, rng: np.random.Generator | None = None,
-                  model: SurfaceModel | None = None) -> PoseEstimate:
+                  model: SurfaceModel | None = None, free_axes: np.ndarray | None = None) -> PoseEstimate:
     """Fit the position of ``obj`` held in the hand to its points (N, 3) (m), its orientation the ``guess``'s.
 
-    In the hand the grasp fixes the object's orientation to within the pads' compliance; where the pads
-    closed on it along their faces is what the grasp model does not know (the error of the estimate it was
-    picked from), so the fit's unknowns are the three coordinates of its position.
+    In the hand the grasp fixes the object's orientation to within the pads' compliance, and the pads, closing
+    together, centre it between them; how deep they closed on it is where the hand went to grasp it. Where
+    they closed on it along their faces is what the grasp model does not know (the error of the estimate it
+    was picked from). So the fit's unknowns are the coordinates of its position along ``free_axes``: for a
+    parallel gripper the direction along the pads' faces across the approach. Along the others the grasp
+    model is the better measurement (the pads cover the faces that would show the closing axis; the top face
+    alone fixes the height poorly where few of its points are seen).
 
     Args:
         points: The object's points.
         obj: The object (its geometry).
-        guess: Where the grasp model puts it (its orientation is kept).
+        guess: Where the grasp model puts it (its orientation is kept; its position along the fixed axes).
         rng: Generator for the subset of points.
         model: The object's :class:`SurfaceModel`, if already built.
+        free_axes: The directions (3, k) (world, orthonormal columns) along which the position is fitted.
+            Default: all three.
 
     Raises:
         ObjectNotSeen: fewer than ``MIN_POINTS`` points.
     """
     points = _subset(points, obj, rng)
     model = model if model is not None else SurfaceModel(obj)
-    R = guess.rotation
+    R, t0 = guess.rotation, guess.translation.copy()
+    free = np.eye(3) if free_axes is None else np.asarray(free_axes, dtype=float).reshape(3, -1)
 
-    def residuals(t: np.ndarray) -> np.ndarray:
-        return model.residuals((points - t) @ R)
+    def residuals(s: np.ndarray) -> np.ndarray:
+        return model.residuals((points - (t0 + free @ s)) @ R)
 
-    sol = least_squares(residuals, guess.translation.copy(), loss="soft_l1", f_scale=0.002, x_scale=0.01)
+    sol = least_squares(residuals, np.zeros(free.shape[1]), loss="soft_l1", f_scale=0.002, x_scale=0.01)
     r = residuals(sol.x)
-    return PoseEstimate(pin.SE3(R.copy(), sol.x.copy()), float(np.sqrt(np.mean(r**2))), len(points))
+    return PoseEstimate(pin.SE3(R.copy(), t0 + free @ sol.x), float(np.sqrt(np.mean(r**2))), len(points))
 
 
 __all__ = ["MIN_POINTS", "ObjectNotSeen", "PoseEstimate", "SurfaceModel", "fit_held_pose", "fit_resting_pose",

@@ -207,7 +207,7 @@ class TableCamera:
         return offset, ndimage.binary_dilation(moved, iterations=2)
 
     def locate(self, d: mujoco.MjData, near: pin.SE3 | None = None, start: pin.SE3 | None = None,
-               from_hand: bool = False) -> PoseEstimate:
+               from_hand: bool = False, views: int = 1) -> PoseEstimate:
         """The resting object's pose.
 
         Args:
@@ -216,19 +216,25 @@ class TableCamera:
             start: Fit from this pose only (:meth:`recheck`); default: from several yaws.
             from_hand: Measure the object against the hand next to it (the calibration error cancels, as in
                 :meth:`in_hand`): where the hand is close, e.g. just after the release.
+            views: Images taken (of the same scene: consecutive frames), their points fitted together: the
+                sensor's noise averages out (not the calibration error, which is the same in every frame).
 
         Raises:
             ObjectNotSeen: too few points of the object (or of the table, or of the hand).
         """
         t0 = time.perf_counter()
         try:
-            depth, known = self._image(d)
-            if from_hand:
-                offset, mask = self._hand_offset(d, depth, known)
-            else:
-                offset, mask = np.zeros(3), ndimage.binary_dilation(known, iterations=MASK_MARGIN_PX)
-            pixels = ~mask if near is None else ~mask & self._window(near)
-            cloud = point_cloud(depth, self.config, pixels) - offset
+            window = None if near is None else self._window(near)
+            clouds = []
+            for _ in range(views):
+                depth, known = self._image(d)
+                if from_hand:
+                    offset, mask = self._hand_offset(d, depth, known)
+                else:
+                    offset, mask = np.zeros(3), ndimage.binary_dilation(known, iterations=MASK_MARGIN_PX)
+                pixels = ~mask if window is None else ~mask & window
+                clouds.append(point_cloud(depth, self.config, pixels) - offset)
+            cloud = np.concatenate(clouds)
             table = observed_table_height(cloud, self.robot.scene.table_height_m, self.table_box)
             if near is not None:
                 cloud = self._near(cloud, near)
@@ -247,12 +253,15 @@ class TableCamera:
         (``from_hand``: measured against the hand next to it, :meth:`locate`)."""
         return self.locate(d, near=believed, start=believed, from_hand=from_hand)
 
-    def in_hand(self, d: mujoco.MjData, guess: pin.SE3) -> PoseEstimate:
+    def in_hand(self, d: mujoco.MjData, guess: pin.SE3, free_axes: np.ndarray | None = None) -> PoseEstimate:
         """The held object's pose, its position measured against the gripper in the same image.
 
         Args:
             d: The simulation (rendered; the robot's configuration for its model of itself).
             guess: Where the grasp model puts the object (its orientation is kept).
+            free_axes: The directions (3, k) (world, orthonormal) along which the position is measured; along
+                the others it stays the grasp model's (:func:`~pickplace.perception.pose.fit_held_pose`).
+                Default: all three.
 
         Raises:
             ObjectNotSeen: too few points of the object or of the gripper.
@@ -263,7 +272,7 @@ class TableCamera:
             offset, mask = self._hand_offset(d, depth, known)
             points = self._near(point_cloud(depth, self.config, ~mask & self._window(guess)) - offset, guess)
             points = points[points[:, 2] > self.robot.scene.table_height_m + self.clearance_m]
-            est = fit_held_pose(points, self.obj, guess, self.rng, model=self.model)
+            est = fit_held_pose(points, self.obj, guess, self.rng, model=self.model, free_axes=free_axes)
             log.debug("in hand: calibration offset at the gripper (%.1f, %.1f, %.1f) mm; object %.1f mm from the "
                       "grasp model", *(offset * 1e3), np.linalg.norm(est.T_world_object.translation
                                                                      - guess.translation) * 1e3)

@@ -25,7 +25,7 @@ from pickplace.perception.camera import CameraConfig
 from pickplace.perception.pose import ObjectNotSeen
 from pickplace.robot import gripper
 from pickplace.robot.model import Robot
-from pickplace.world.config import check_range
+from pickplace.world.config import check_int, check_range
 from pickplace.world.contact import Contact
 
 log = logging.getLogger(__name__)
@@ -46,6 +46,11 @@ class Observer(Protocol):
     def observe(self, near: pin.SE3 | None = None) -> pin.SE3:
         """Look at the resting object (anywhere on the table, or near ``near``, where the hand may be too) and
         return its pose."""
+        ...
+
+    def look_from_hand(self) -> bool:
+        """Measure the resting object again against the hand above it (at the pregrasp, before the approach
+        commits the pads): whether the belief changed (an exact observer has nothing to refine)."""
         ...
 
     def object_pose(self) -> pin.SE3:
@@ -146,6 +151,10 @@ class SimulatorObserver:
         self._observed_at = T.translation.copy()
         return T
 
+    def look_from_hand(self) -> bool:
+        """Nothing to refine: the pose is exact."""
+        return False
+
     def object_pose(self) -> pin.SE3:
         """The object's pose (its body frame)."""
         return pin.SE3(self.d.xmat[self._body].reshape(3, 3).copy(), self.d.xpos[self._body].copy())
@@ -239,6 +248,9 @@ class SensingConfig:
             processing), so the robot re-checks at 10 Hz.
         rest_window_s: The object's velocity is the motion between two re-checks at least this far apart (s):
             over a shorter time the fit's sub-millimetre scatter would read as motion.
+        views_per_look: Depth frames fitted together at each look that decides something (the observation
+            before the pick, the look from the hand above it, the place check; 3 frames: 0.1 s of a 30 Hz
+            stream): their noise averages (the re-checks take one).
     """
 
     wrist_force_noise_n: float = 0.1
@@ -247,6 +259,7 @@ class SensingConfig:
     lifted_fraction: float = 0.8
     watch_period_s: float = 0.1
     rest_window_s: float = 0.2
+    views_per_look: int = 3
 
     def __post_init__(self) -> None:
         check_range("sensing.wrist_force_noise_n", self.wrist_force_noise_n, 0.0, 10.0, unit="N")
@@ -255,6 +268,7 @@ class SensingConfig:
         check_range("sensing.lifted_fraction", self.lifted_fraction, 0.0, 1.0, lo_open=True)
         check_range("sensing.watch_period_s", self.watch_period_s, 0.001, 1.0, unit="s")
         check_range("sensing.rest_window_s", self.rest_window_s, 0.01, 2.0, unit="s")
+        check_int("sensing.views_per_look", self.views_per_look, 1, 30)
 
 
 class SensorObserver:
@@ -298,6 +312,7 @@ class SensorObserver:
         self._g = float(-m.opt.gravity[2])
         self._belief = pin.SE3.Identity()  # where the robot believes the resting object is
         self._observed = pin.SE3.Identity()  # where it was when last observed
+        self._observed_from_hand = False  # whether that observation was measured against the hand
         self._seen = pin.SE3.Identity()  # where the latest re-check saw it
         self._T_tcp_object: pin.SE3 | None = None
         self._checks: list[tuple[float, np.ndarray, bool]] = []  # (time, position, against the hand) of re-checks
@@ -318,9 +333,10 @@ class SensorObserver:
         against the hand when the hand is next to it (``near`` given and within reach of the camera's view of
         the hand)."""
         close = near is not None and self._hand_near(near)
-        est = self.camera.locate(self.d, near=near, from_hand=close)
+        est = self.camera.locate(self.d, near=near, from_hand=close, views=self.sensing.views_per_look)
         self.observations += 1
         self._belief = self._observed = self._seen = est.T_world_object
+        self._observed_from_hand = close
         self._T_tcp_object = None
         self._checks = [(float(self.d.time), est.T_world_object.translation.copy(), close)]
         self._looked_at = float(self.d.time)
@@ -328,6 +344,29 @@ class SensorObserver:
         log.debug("observed the %s at (%.4f, %.4f) m, residual %.2f mm, %d points", self.robot.scene.object.name,
                   *est.T_world_object.translation[:2], est.residual_m * 1e3, est.points)
         return est.T_world_object
+
+    def look_from_hand(self) -> bool:
+        """The resting object measured against the hand above it (:meth:`TableCamera.locate` ``from_hand``: the
+        camera's calibration error cancels to first order), fitted from the belief, which it replaces. It is the
+        new observation: the "moved" re-checks are measured against the hand too from now on (the hand near the
+        object hides part of it, which biases a fit that does not register the hand). Not seen (the hand hides
+        it): the belief stays.
+        """
+        try:
+            est = self.camera.locate(self.d, near=self._belief, start=self._belief, from_hand=True,
+                                     views=self.sensing.views_per_look)
+        except ObjectNotSeen as exc:
+            log.debug("from the hand: not seen (%s); the belief stays", exc)
+            return False
+        self.observations += 1
+        log.debug("from the hand: the %s is %.1f mm from the belief", self.robot.scene.object.name,
+                  np.linalg.norm(est.T_world_object.translation - self._belief.translation) * 1e3)
+        self._belief = self._observed = self._seen = est.T_world_object
+        self._observed_from_hand = True
+        self._checks = [(float(self.d.time), est.T_world_object.translation.copy(), True)]
+        self._looked_at = float(self.d.time)
+        self._moved = 0.0
+        return True
 
     def _hand_near(self, T_world_object: pin.SE3) -> bool:
         """Whether the tcp is within ``HAND_NEAR_M`` of the object at this pose (the camera can measure it
@@ -365,13 +404,13 @@ class SensorObserver:
         p = est.T_world_object.translation.copy()
         self._seen = est.T_world_object
         self._checks.append((t, p, from_hand))
-        if not from_hand:  # measured as the observation was: comparable with it
+        if from_hand == self._observed_from_hand:  # measured as the observation was: comparable with it
             self._moved = float(np.linalg.norm(p - self._observed.translation))
 
     def moved_m(self) -> float:
         """Distance of the camera's latest re-check from where the object was observed, both measured the same
-        way (m)."""
-        self._recheck(from_hand=False)
+        way (m): against the hand if the observation was."""
+        self._recheck(from_hand=self._observed_from_hand)
         return self._moved
 
     def object_velocity(self) -> np.ndarray:
@@ -390,8 +429,10 @@ class SensorObserver:
         return np.concatenate([(p - pk) / (t - tk), np.zeros(3)])
 
     def look_in_hand(self) -> None:
-        """The held object's position in the hand from a camera image (:class:`ObjectNotSeen` if not seen)."""
-        est = self.camera.in_hand(self.d, self.object_pose())
+        """The held object's position along the pads' faces across the approach (tcp x) from a camera image
+        (:class:`ObjectNotSeen` if not seen); along the closing axis (the pads centre it) and the approach (as
+        deep as the hand went) it stays the grasp model's."""
+        est = self.camera.in_hand(self.d, self.object_pose(), free_axes=self._tcp_pose().rotation[:, :1])
         self.observations += 1
         self._T_tcp_object = self._tcp_pose().actInv(est.T_world_object)
 
@@ -404,11 +445,12 @@ class SensorObserver:
         self._tare = f - self._hand_mass * (self._g + a)
 
     def grasped(self, T_tcp_object_model: pin.SE3) -> None:
-        """In the hand where it was seen, centred between the pads along their closing axis (tcp y)."""
-        T = self._tcp_pose().actInv(self._belief)
-        p = T.translation.copy()
+        """In the hand where it was seen, centred between the pads along their closing axis (tcp y), turned as
+        the grasp model holds it (the pads square it up: the yaw error of the look it was grasped from does not
+        carry into the hand)."""
+        p = self._tcp_pose().actInv(self._belief).translation.copy()
         p[1] = T_tcp_object_model.translation[1]
-        self._T_tcp_object = pin.SE3(T.rotation, p)
+        self._T_tcp_object = pin.SE3(T_tcp_object_model.rotation.copy(), p)
 
     def released(self) -> None:
         """The object stays where it was believed to be when the pads opened."""

@@ -43,6 +43,7 @@ from pickplace.grasping.targets import CLEARANCE_M, backed_off, object_yaw, plac
 from pickplace.motion import control
 from pickplace.motion.control import Payload
 from pickplace.motion.timing import retime
+from pickplace.perception.pose import ObjectNotSeen
 from pickplace.robot import gripper
 from pickplace.robot.ik import IKConfig, solve_ik
 from pickplace.robot.kinematics import frame_pose
@@ -55,6 +56,11 @@ from pickplace.task.recovery import FirstMove, RetryBudget, recovery_for
 from pickplace.world.mass import mass_properties
 
 log = logging.getLogger(__name__)
+
+
+#: How far the hand backs off from a released object it hides from the camera before it looks again (m): near
+#: enough still for the camera to measure the object against the hand.
+LOOK_BACK_OFF_M = 0.04
 
 
 class _SetDown(Exception):
@@ -82,6 +88,8 @@ class PickPlaceSkill:
         self.faults, self.injector, self.timing = arm.faults, arm.injector, arm.timing
         self.budget = RetryBudget(arm.cfg.max_retries)
         self.configs: GraspConfigurations | None = None
+        self._reaimed = False  # the approach was planned again after the look from the hand
+        self._backed_off_m = 0.0  # how far the hand backed off after the release to look at the object (m)
         self._release_t = math.nan
         self._dropped: list[GraspCandidate] = []  # grasps given up on (no path to them), not tried again
         self._object_names = frozenset(object_geom_names(arm.robot.scene.object))
@@ -94,6 +102,7 @@ class PickPlaceSkill:
         """Look at the resting object (the observer's estimate), and measure the estimate against the truth
         for the record (the robot never sees that comparison)."""
         obj = self.observer.observe(near)
+        self._reaimed = False
         self._note_estimate("resting")
         return obj
 
@@ -149,10 +158,27 @@ class PickPlaceSkill:
         return Phase.DESCEND
 
     def _descend(self) -> Phase:
-        """The straight approach from the pregrasp to the grasp (a descent for a top-down grasp)."""
+        """The straight approach from the pregrasp to the grasp (a descent for a top-down grasp), re-aimed at
+        the object as seen against the hand above it. A re-aim farther than the planner's margin (the
+        straight approach was checked with that clearance) solves the grasps again and plans a new approach
+        (once per observation)."""
         assert self.configs is not None
         targets = self.configs.targets
-        self.arm.linear(Phase.DESCEND, targets.grasp.translation)
+        aim = targets.grasp.translation
+        if self.observer.look_from_hand():
+            self._note_estimate("from the hand")
+            aim = (self._object_pose() * targets.T_object_tcp).translation
+            shift = float(np.linalg.norm(aim - targets.grasp.translation))
+            if shift > self.cfg.planning_margin_m and not self._reaimed:
+                self._reaimed = True
+                log.info("DESCEND: the %s is %.1f mm from where the grasp was planned: planning again",
+                         self.robot.scene.object.name, shift * 1e3)
+                t0 = time.perf_counter()
+                self._adopt(self._solve_grasps(self._object_pose()))
+                self.arm.note_ik(*self.configs.results())
+                self.out.wall_plan_time_s += time.perf_counter() - t0
+                return Phase.PLAN_APPROACH
+        self.arm.linear(Phase.DESCEND, aim)
         want = (self._object_pose() * targets.T_object_tcp).translation  # where the grasp is, the object as it is
         off = float(np.linalg.norm(self.arm.tcp_pose().translation - want))
         if off > 0.005:
@@ -350,11 +376,20 @@ class PickPlaceSkill:
         def speed() -> float:
             return float(np.linalg.norm(observer.object_velocity()[:3]))
 
-        def released() -> bool:
-            return (gripper.finger_travel(robot, d) <= clear_travel and not np.any(observer.pad_forces() > 0.0)
-                    and speed() < cfg.object_rest_speed_m_s)
+        def cleared() -> bool:
+            return gripper.finger_travel(robot, d) <= clear_travel and not np.any(observer.pad_forces() > 0.0)
 
-        if not self.arm.hold_until(self.arm.q, released, cfg.release_timeout_s, min_s=cfg.poll_s):
+        def released() -> bool:
+            return cleared() and speed() < cfg.object_rest_speed_m_s
+
+        rested = self.arm.hold_until(self.arm.q, released, cfg.release_timeout_s, min_s=cfg.poll_s)
+        if not rested and cleared() and not math.isfinite(speed()):  # the open pads hide it from the camera
+            log.info("RELEASE: the camera does not see the %s next to the open pads; backing off %.0f mm to look "
+                     "again", robot.scene.object.name, LOOK_BACK_OFF_M * 1e3)
+            self.arm.linear(Phase.RELEASE, backed_off(self.arm.tcp_pose(), LOOK_BACK_OFF_M).translation)
+            self._backed_off_m = LOOK_BACK_OFF_M
+            rested = self.arm.hold_until(self.arm.q, released, cfg.release_timeout_s, min_s=cfg.poll_s)
+        if not rested:
             forces = observer.pad_forces()
             raise PhaseFailed(Phase.RELEASE, f"the pads did not clear the {robot.scene.object.name} within "
                                              f"{cfg.release_timeout_s:g} "
@@ -363,7 +398,16 @@ class PickPlaceSkill:
                                              f"{speed() * 1e3:.1f} mm/s)")
         self.monitor.allow_hand_object = False
         self._measure_place()
-        xy, z, yaw = self._place_errors(self._observe(near=observer.object_pose()))
+        try:
+            seen = self._observe(near=observer.object_pose())
+        except ObjectNotSeen as exc:  # the open pads hide it: back off a little and look again
+            if self._backed_off_m > 0.0:
+                raise
+            log.info("RELEASE: %s; backing off %.0f mm to look again", exc, LOOK_BACK_OFF_M * 1e3)
+            self.arm.linear(Phase.RELEASE, backed_off(self.arm.tcp_pose(), LOOK_BACK_OFF_M).translation)
+            self._backed_off_m = LOOK_BACK_OFF_M
+            seen = self._observe(near=observer.object_pose())
+        xy, z, yaw = self._place_errors(seen)
         name = robot.scene.object.name
         wrong = []  # every check that fails, so that one does not hide another
         if xy > cfg.place_tolerance_xy_m:
@@ -398,7 +442,9 @@ class PickPlaceSkill:
         """Back off from the object along the approach, rise if the plan said so (or if the hand is still
         within the planner's margin of something), and go home."""
         assert self.configs is not None
-        self.arm.linear(Phase.RETRACT, backed_off(self.arm.tcp_pose(), self.cfg.retract_height_m).translation)
+        back = self.cfg.retract_height_m - self._backed_off_m  # less what the place check backed off already
+        if back > 0.0:
+            self.arm.linear(Phase.RETRACT, backed_off(self.arm.tcp_pose(), back).translation)
         if self.configs.targets.retreat_rise_m > 0.0:
             rise = self.configs.targets.retreat_rise_m
             self.arm.vertical(Phase.RETRACT, float(self.arm.tcp_pose().translation[2]) + rise)
