@@ -119,6 +119,11 @@ class Observer(Protocol):
         """The hand carries an object of this mass off the table from now on (None: not any more)."""
         ...
 
+    def payload_mass_kg(self, modelled_kg: float, weighed_kg: float) -> float:
+        """The held object's mass the controllers compensate once it is lifted (kg): the object model's
+        (``modelled_kg``) where that is the truth, else what the lift weighed (``weighed_kg``, nan if not)."""
+        ...
+
     def grip_lost(self) -> str | None:
         """Why the sensors say the object is no longer held, or None."""
         ...
@@ -219,6 +224,10 @@ class SimulatorObserver:
 
     def expect_load(self, mass_kg: float | None) -> None:
         """Nothing to do: slip is measured on the object itself."""
+
+    def payload_mass_kg(self, modelled_kg: float, weighed_kg: float) -> float:
+        """The model's mass: it is the object's."""
+        return modelled_kg
 
     def grip_lost(self) -> str | None:
         """Never: a lost grip shows as slip."""
@@ -549,6 +558,10 @@ class SensorObserver:
     def expect_load(self, mass_kg: float | None) -> None:
         """Watch the wrist for this weight from now on."""
         self._mass = mass_kg
+
+    def payload_mass_kg(self, modelled_kg: float, weighed_kg: float) -> float:
+        """What the wrist weighed during the lift (the model's mass if it weighed nothing)."""
+        return weighed_kg if math.isfinite(weighed_kg) and weighed_kg > 0.0 else modelled_kg
 
     def grip_lost(self) -> str | None:
         """The wrist carries less than ``load_lost_fraction`` of the weight (low-passed), or None."""

@@ -291,6 +291,10 @@ class PickPlaceSkill:
         if not came_up:  # (a sensor that sees the object itself has said so above)
             raise GraspFailed(f"the {self.robot.scene.object.name} did not come up with the hand: it weighed "
                               f"{mass:.3f} kg of its {self.arm.payload.mass_kg:.3f} kg")
+        weighed = self.observer.payload_mass_kg(self.arm.payload.mass_kg, mass)  # a robot's payload: as weighed
+        if weighed != self.arm.payload.mass_kg:
+            log.debug("LIFT: payload %.3f kg as weighed (model %.3f kg)", weighed, self.arm.payload.mass_kg)
+            self.arm.payload = dataclasses.replace(self.arm.payload, mass_kg=weighed)
         self.observer.expect_load(self.arm.payload.mass_kg)  # airborne: the hand carries its weight from now on
         self.arm.T_tcp_object = self.arm.tcp_pose().actInv(self._object_pose())  # as it sits in the hand
         self.arm.rise_until_clear(Phase.LIFT, lambda margin: self.arm.carrying(margin, False))
