@@ -38,6 +38,11 @@ IDEAL_CLOSING_SPEED_M_S = 40.0 / 120.0
 ROBOTIQ_2F85_MAX_CLOSING_SPEED_M_S = 0.150
 ROBOTIQ_2F85_MIN_GRIP_FORCE_N = 20.0
 ROBOTIQ_2F85_MAX_GRIP_FORCE_N = 235.0
+#: Time constant (s) of the equality through which the mirrored finger follows the driven one, as built.
+IDEAL_COUPLING_TIMECONST_S = 0.005
+#: A linkage gripper's (the 2F-85's) fingers are coupled rigidly: the stiffest the soft constraint stays stable
+#: at, two physics steps of 1 ms (s).
+LINKAGE_COUPLING_TIMECONST_S = 0.002
 
 
 @dataclass(frozen=True)
@@ -50,13 +55,20 @@ class GripperConfig:
     damping to ``grip_force_n / closing_speed_m_s`` per finger; a force above the built one scales the servo's
     stiffness with it, so that it still saturates as soon as the fingers stop 8 mm short of the closed target.
 
+    The mirrored finger follows the driven one through a soft equality constraint; under the squeeze it lags
+    by the constraint's compliance (about 0.5 mm at 20 N with the built 5 ms), which shifts the grip's centre
+    and pushes the hand sideways against an object the table holds. A linkage drive has no such lag.
+
     Attributes:
         closing_speed_m_s: Speed of each finger (pad) closing or opening freely (m/s).
         grip_force_n: Normal force of each pad on a held object, the servo saturated (N).
+        coupling_timeconst_s: Time constant of the finger coupling (MuJoCo ``solref``) (s): at least two
+            physics steps.
     """
 
     closing_speed_m_s: float = IDEAL_CLOSING_SPEED_M_S
     grip_force_n: float = IDEAL_GRIP_FORCE_N
+    coupling_timeconst_s: float = IDEAL_COUPLING_TIMECONST_S
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -64,15 +76,19 @@ class GripperConfig:
                                                     0.005, 1.0, unit="m/s"))
         set_(self, "grip_force_n", check_range("gripper.grip_force_n", self.grip_force_n, 1.0,
                                                ROBOTIQ_2F85_MAX_GRIP_FORCE_N, unit="N"))
+        set_(self, "coupling_timeconst_s", check_range("gripper.coupling_timeconst_s", self.coupling_timeconst_s,
+                                                       0.001, 0.1, unit="s"))
 
     @classmethod
     def realistic(cls) -> GripperConfig:
-        """A Robotiq 2F-85-like drive: 0.15 m/s, 20 N (:data:`ROBOTIQ_2F85_MAX_CLOSING_SPEED_M_S`)."""
-        return cls(closing_speed_m_s=ROBOTIQ_2F85_MAX_CLOSING_SPEED_M_S, grip_force_n=ROBOTIQ_2F85_MIN_GRIP_FORCE_N)
+        """A Robotiq 2F-85-like drive: 0.15 m/s, 20 N (:data:`ROBOTIQ_2F85_MAX_CLOSING_SPEED_M_S`), the fingers
+        coupled by its linkage (:data:`LINKAGE_COUPLING_TIMECONST_S`)."""
+        return cls(closing_speed_m_s=ROBOTIQ_2F85_MAX_CLOSING_SPEED_M_S, grip_force_n=ROBOTIQ_2F85_MIN_GRIP_FORCE_N,
+                   coupling_timeconst_s=LINKAGE_COUPLING_TIMECONST_S)
 
 
 def with_gripper(robot: Robot, config: GripperConfig) -> Robot:
-    """A copy of ``robot`` whose finger drive has ``config``'s closing speed and grip force.
+    """A copy of ``robot`` whose finger drive has ``config``'s closing speed, grip force and coupling.
 
     Returns:
         ``robot`` itself when its model already has them (the ideal default, so ideal runs are unchanged bit
@@ -80,19 +96,26 @@ def with_gripper(robot: Robot, config: GripperConfig) -> Robot:
         fingers' damping and force do not enter the arm's controllers).
 
     Raises:
-        ConfigError: ``config`` is not a :class:`GripperConfig`.
+        ConfigError: ``config`` is not a :class:`GripperConfig`, or its coupling is faster than two physics
+            steps.
     """
     if not isinstance(config, GripperConfig):
         raise ConfigError("gripper", config, "must be a GripperConfig")
     m, h = robot.mj, robot.handles
+    if config.coupling_timeconst_s < 2.0 * m.opt.timestep - 1e-12:
+        raise ConfigError("gripper.coupling_timeconst_s", config.coupling_timeconst_s,
+                          f"must be at least two physics steps ({2.0 * m.opt.timestep:g} s)")
     a = h.gripper_actuator
+    eq = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_EQUALITY, "finger_coupling")
     force = 2.0 * config.grip_force_n
     damping = config.grip_force_n / config.closing_speed_m_s
     now_force = float(m.actuator_forcerange[a, 1])
     now_damping = m.dof_damping[h.finger_dof]
-    if math.isclose(force, now_force, rel_tol=1e-9) and np.allclose(now_damping, damping, rtol=1e-9, atol=0.0):
+    if (math.isclose(force, now_force, rel_tol=1e-9) and np.allclose(now_damping, damping, rtol=1e-9, atol=0.0)
+            and math.isclose(config.coupling_timeconst_s, float(m.eq_solref[eq, 0]), rel_tol=1e-9)):
         return robot
     mj = copy.deepcopy(m)
+    mj.eq_solref[eq, 0] = config.coupling_timeconst_s
     mj.actuator_forcerange[a] = (-force, force)
     mj.actuator_forcelimited[a] = 1
     mj.dof_damping[h.finger_dof] = damping
@@ -101,7 +124,8 @@ def with_gripper(robot: Robot, config: GripperConfig) -> Robot:
     kp = float(m.actuator_gainprm[a, 0]) * max(1.0, force / now_force)
     mj.actuator_gainprm[a, 0] = kp
     mj.actuator_biasprm[a, 1] = -kp
-    log.info("gripper drive: %.3f m/s, %.1f N per pad", config.closing_speed_m_s, config.grip_force_n)
+    log.info("gripper drive: %.3f m/s, %.1f N per pad, coupling %.0f ms", config.closing_speed_m_s,
+             config.grip_force_n, config.coupling_timeconst_s * 1e3)
     return dataclasses.replace(robot, mj=mj)
 
 

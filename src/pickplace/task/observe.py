@@ -338,11 +338,12 @@ class SensorObserver:
     # -- the camera ------------------------------------------------------------------------------------- #
 
     def observe(self, near: pin.SE3 | None = None) -> pin.SE3:
-        """The resting object's pose from a camera image (:class:`ObjectNotSeen` if it is not seen); measured
-        against the hand when the hand is next to it (``near`` given and within reach of the camera's view of
-        the hand)."""
+        """The resting object's pose from a camera image (:class:`ObjectNotSeen` if it is not seen). Near a
+        pose (``near``: where the robot has just put it) the fit starts from that pose, so that a symmetry or
+        another cluster of points does not read as a place error, and it is measured against the hand when the
+        hand is next to it (within reach of the camera's view of the hand)."""
         close = near is not None and self._hand_near(near)
-        est = self.camera.locate(self.d, near=near, from_hand=close, views=self.sensing.views_per_look)
+        est = self.camera.locate(self.d, near=near, start=near, from_hand=close, views=self.sensing.views_per_look)
         self.observations += 1
         self._belief = self._observed = self._seen = est.T_world_object
         self._observed_from_hand = close
