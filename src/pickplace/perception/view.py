@@ -168,12 +168,16 @@ class TableCamera:
         """Release the OpenGL context."""
         self.camera.close()
 
-    def _image(self, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-        """One depth image as the sensor reports it, and the pixels of what the robot knows is there."""
-        exact = self.camera.render_depth(d, seen_from=self.real)
-        depth = sensor_depth(exact, self.config, self.rng)
+    def _scene(self, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+        """The exact depth image of the scene now, seen from where the camera really is, and the pixels of what
+        the robot knows is there (renders: the frames of one look share them; each has its own noise,
+        :meth:`_frame`)."""
+        return self.camera.render_depth(d, seen_from=self.real), self.camera.render_mask(d, self.known)
+
+    def _frame(self, exact: np.ndarray) -> np.ndarray:
+        """One depth frame as the sensor reports it (its noise drawn now)."""
         self.images += 1
-        return depth, self.camera.render_mask(d, self.known)
+        return sensor_depth(exact, self.config, self.rng)
 
     def _window(self, T_world_object: pin.SE3) -> np.ndarray:
         """The pixels (H, W) (bool) of the image's rectangle around the object's bounding sphere at this pose
@@ -194,14 +198,21 @@ class TableCamera:
         centre = T_world_object.act(self._centre_local)
         return points[np.linalg.norm(points - centre, axis=1) < self._radius_m]
 
-    def _hand_offset(self, d: mujoco.MjData, depth: np.ndarray, known: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The calibration error's displacement of the points around the hand and the self-filter where the
-        sensor sees the robot (:func:`register_offset` on the robot's model of itself near the tcp)."""
-        own = self.camera.render_depth(d, hide_object=True)  # its model of itself, where it believes
+    def _own_hand(self, d: mujoco.MjData, known: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The robot's model of itself rendered where it believes the camera is (H, W) (m), and its own pixels
+        near the tcp (H, W) (bool): what :meth:`_hand_offset` matches."""
+        own = self.camera.render_depth(d, hide_object=True)
         tcp = d.site_xpos[self.robot.handles.tcp_site]
         own_px = known & (own > 0.0)
-        hand = np.zeros(known.shape, dtype=bool)  # its own pixels near the tcp (only those back-projected)
+        hand = np.zeros(known.shape, dtype=bool)  # only those pixels are back-projected
         hand[own_px] = np.linalg.norm(point_cloud(own, self.config, own_px) - tcp, axis=1) < HAND_RADIUS_M
+        return own, hand
+
+    def _hand_offset(self, depth: np.ndarray, known: np.ndarray, own: np.ndarray,
+                     hand: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The calibration error's displacement of the points around the hand and the self-filter where the
+        sensor sees the robot (:func:`register_offset` of the robot's model of itself near the tcp,
+        :meth:`_own_hand`, on this frame)."""
         offset, shift = register_offset(depth, own, hand, self.config)
         moved = ndimage.shift(known, (shift[1], shift[0]), order=0, mode="constant", cval=False)
         return offset, ndimage.binary_dilation(moved, iterations=2)
@@ -225,13 +236,16 @@ class TableCamera:
         t0 = time.perf_counter()
         try:
             window = None if near is None else self._window(near)
+            exact, known = self._scene(d)
+            if from_hand:
+                own, hand = self._own_hand(d, known)
+            else:
+                offset, mask = np.zeros(3), ndimage.binary_dilation(known, iterations=MASK_MARGIN_PX)
             clouds = []
             for _ in range(views):
-                depth, known = self._image(d)
+                depth = self._frame(exact)
                 if from_hand:
-                    offset, mask = self._hand_offset(d, depth, known)
-                else:
-                    offset, mask = np.zeros(3), ndimage.binary_dilation(known, iterations=MASK_MARGIN_PX)
+                    offset, mask = self._hand_offset(depth, known, own, hand)
                 pixels = ~mask if window is None else ~mask & window
                 clouds.append(point_cloud(depth, self.config, pixels) - offset)
             cloud = np.concatenate(clouds)
@@ -268,8 +282,9 @@ class TableCamera:
         """
         t0 = time.perf_counter()
         try:
-            depth, known = self._image(d)
-            offset, mask = self._hand_offset(d, depth, known)
+            exact, known = self._scene(d)
+            depth = self._frame(exact)
+            offset, mask = self._hand_offset(depth, known, *self._own_hand(d, known))
             points = self._near(point_cloud(depth, self.config, ~mask & self._window(guess)) - offset, guess)
             points = points[points[:, 2] > self.robot.scene.table_height_m + self.clearance_m]
             est = fit_held_pose(points, self.obj, guess, self.rng, model=self.model, free_axes=free_axes)

@@ -17,15 +17,17 @@ Reported per object and look, against the simulator's truth (which the fit never
 position error (horizontal) and of the yaw error (modulo the object's symmetry), the fit's RMS residual, the
 looks where the object was not seen, and the wall time per estimate (rendering included).
 
-Usage: ``pickplace bench perception [--json] [--trials N] [--objects NAME ...] [--seed S]``.
+Usage: ``pickplace bench perception [--json] [--trials N] [--objects NAME ...] [--seed S] [--workers W]``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import sys
 import time
+from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
 import mujoco
@@ -114,9 +116,16 @@ def run_object(name: str, trials: int, seed: int, camera: CameraConfig | None = 
                       for look, e in errors.items()}}
 
 
-def run(trials: int, objects: list[str], seed: int) -> dict[str, Any]:
-    """The benchmark for several objects, with the conditions."""
+def run(trials: int, objects: list[str], seed: int, workers: int = 1) -> dict[str, Any]:
+    """The benchmark for several objects (``workers`` processes, one object each at a time), with the
+    conditions."""
     cfg = CameraConfig()
+    jobs = [(name, trials, seed + i, cfg) for i, name in enumerate(objects)]
+    if workers > 1:
+        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+            results = list(pool.map(run_object, *zip(*jobs, strict=True)))
+    else:
+        results = [run_object(*job) for job in jobs]
     return {"machine": machine_info(), "camera": {k: getattr(cfg, k) for k in (
         "position_m", "look_at_m", "width_px", "height_px", "vertical_fov_rad", "baseline_m", "subpixel_px",
         "depth_unit_m", "calibration_position_sigma_m", "calibration_angle_sigma_rad")},
@@ -125,7 +134,7 @@ def run(trials: int, objects: list[str], seed: int) -> dict[str, Any]:
                       "calibration error drawn per trial; 'table': the look before the pick, 'hand': the look "
                       f"with the tcp {HAND_ABOVE_M * 100:.0f} cm above the object, measured against the hand; "
                       f"{SensingConfig().views_per_look} frames per look; errors against the simulator's truth",
-        "seed": seed, "objects": [run_object(name, trials, seed + i, cfg) for i, name in enumerate(objects)]}
+        "seed": seed, "workers": workers, "objects": results}
 
 
 def print_table(result: dict[str, Any]) -> None:
@@ -157,10 +166,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--objects", nargs="+", default=list(LIBRARY), choices=list(LIBRARY), metavar="NAME",
                         help="library objects (default: all)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the poses, noise and calibration errors")
+    parser.add_argument("--workers", type=int, default=1, help="processes (one object each at a time)")
     args = parser.parse_args(argv)
     if args.trials < 1:
-        parser.error("--trials must be >= 1")
-    result = run(args.trials, args.objects, args.seed)
+        parser.error(f"--trials must be >= 1, got {args.trials}")
+    if args.workers < 1:
+        parser.error(f"--workers must be >= 1, got {args.workers}")
+    result = run(args.trials, args.objects, args.seed, args.workers)
     if args.json:
         print(json.dumps(result))
     else:
