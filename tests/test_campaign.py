@@ -341,6 +341,7 @@ def test_failed_trial_is_reproduced_by_its_command(tmp_path: Path, capsys: pytes
     assert strip_wall_times(rerun) == strip_wall_times(expected)
 
 
+@pytest.mark.slow  # two 20-trial runs with a kill between them: ~20 s
 def test_sigkill_then_resume_completes_without_duplicates(tmp_path: Path) -> None:
     n = 8
     out = tmp_path / "killed"
@@ -463,6 +464,7 @@ def test_missing_ray_is_one_clear_error(tmp_path: Path, monkeypatch: pytest.Monk
     assert main(["eval", "--ray", "--trials", "1", "--out", str(tmp_path / "cli")]) == 1
 
 
+@pytest.mark.slow  # starts a local Ray instance: ~17 s
 @pytest.mark.skipif(sys.platform != "linux", reason="checks leftover processes through /proc")
 def test_ray_backend_gives_the_local_results(small: CampaignRun, tmp_path: Path, ray_tag: str) -> None:
     ray = pytest.importorskip("ray", reason="Ray is not installed (pip install 'pickplace[ray]')")

@@ -46,7 +46,7 @@ from pickplace.motion.timing import retime
 from pickplace.perception.pose import ObjectNotSeen
 from pickplace.robot import gripper
 from pickplace.robot.ik import IKConfig, solve_ik
-from pickplace.robot.kinematics import frame_pose
+from pickplace.robot.kinematics import frame_pose, rot_z
 from pickplace.robot.model import object_geom_names
 from pickplace.task.arm import Arm
 from pickplace.task.monitor import UnexpectedContact
@@ -159,32 +159,63 @@ class PickPlaceSkill:
 
     def _descend(self) -> Phase:
         """The straight approach from the pregrasp to the grasp (a descent for a top-down grasp), re-aimed at
-        the object as seen against the hand above it. A re-aim farther than the planner's margin (the
-        straight approach was checked with that clearance) solves the grasps again and plans a new approach
-        (once per observation)."""
+        the object as seen against the hand above it (:meth:`_reaim`)."""
         assert self.configs is not None
         targets = self.configs.targets
-        aim = targets.grasp.translation
+        aim = targets.grasp
         if self.observer.look_from_hand():
             self._note_estimate("from the hand")
-            aim = (self._object_pose() * targets.T_object_tcp).translation
-            shift = float(np.linalg.norm(aim - targets.grasp.translation))
-            if shift > self.cfg.planning_margin_m and not self._reaimed:
-                self._reaimed = True
-                log.info("DESCEND: the %s is %.1f mm from where the grasp was planned: planning again",
-                         self.robot.scene.object.name, shift * 1e3)
-                t0 = time.perf_counter()
-                self._adopt(self._solve_grasps(self._object_pose()))
-                self.arm.note_ik(*self.configs.results())
-                self.out.wall_plan_time_s += time.perf_counter() - t0
+            aim = self._reaim()
+            if aim is None:
                 return Phase.PLAN_APPROACH
-        self.arm.linear(Phase.DESCEND, aim)
-        want = (self._object_pose() * targets.T_object_tcp).translation  # where the grasp is, the object as it is
+        self.arm.linear(Phase.DESCEND, aim.translation)
+        want = self._grasp_on(self._object_pose()).translation  # where the grasp is, the object as it is
         off = float(np.linalg.norm(self.arm.tcp_pose().translation - want))
         if off > 0.005:
             raise PhaseFailed(Phase.DESCEND, f"the tcp is {off * 1e3:.1f} mm from its grasp on the "
                                              f"{self.robot.scene.object.name} (limit 5 mm)")
         return Phase.CLOSE
+
+    def _grasp_on(self, T_world_object: pin.SE3) -> pin.SE3:
+        """The planned grasp on the object at this pose, its yaw taken as the symmetric equivalent nearest the
+        one the grasp was planned for (a fit may return any of them)."""
+        assert self.configs is not None
+        targets = self.configs.targets
+        planned = targets.grasp * targets.T_object_tcp.inverse()  # the object the grasp was planned for
+        turn = yaw_error(T_world_object.rotation, planned.rotation, self.robot.scene.object.yaw_period_rad)
+        return pin.SE3(rot_z(turn) @ planned.rotation, T_world_object.translation.copy()) * targets.T_object_tcp
+
+    def _reaim(self) -> pin.SE3 | None:
+        """The grasp on the object as now believed (its yaw the symmetric equivalent nearest the one planned
+        for), the hand turned and moved to its pregrasp by a direct joint move. A grasp farther than the
+        planner's margin from the planned one (the straight approach was checked with that clearance) solves
+        the grasps again instead, and returns None: plan a new approach (once per observation)."""
+        assert self.configs is not None
+        targets, robot = self.configs.targets, self.robot
+        seen = self._object_pose()
+        grasp = self._grasp_on(seen)
+        turn = float(np.linalg.norm(pin.log3(targets.grasp.rotation.T @ grasp.rotation)))
+        shift = float(np.linalg.norm(grasp.translation - targets.grasp.translation))
+        t0 = time.perf_counter()
+        try:
+            if shift > self.cfg.planning_margin_m and not self._reaimed:
+                self._reaimed = True
+                log.info("DESCEND: the %s is %.1f mm from where the grasp was planned: planning again",
+                         robot.scene.object.name, shift * 1e3)
+                self._adopt(self._solve_grasps(seen))
+                self.arm.note_ik(*self.configs.results())
+                return None
+            pre = solve_ik(robot, backed_off(grasp, CLEARANCE_M), self.arm.q, "pregrasp", self.ik,
+                           finger_m=gripper.finger_travel(robot, self.d))
+            self.arm.note_ik(pre)
+        finally:
+            self.out.wall_plan_time_s += time.perf_counter() - t0
+        log.debug("DESCEND: re-aimed by %.2f mm and %.2f deg", shift * 1e3, math.degrees(turn))
+        if float(np.max(np.abs(pre.q - self.arm.q))) > 1e-5:
+            self.arm.trajectory = retime(np.vstack([self.arm.q, pre.q]), self.timing)
+            self.arm.segment_checker = None  # within the planner's margin of the checked approach
+            self.arm.execute(Phase.DESCEND)
+        return grasp
 
     def _close(self) -> Phase:
         robot, d, cfg = self.robot, self.d, self.cfg
