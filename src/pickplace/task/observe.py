@@ -33,6 +33,10 @@ log = logging.getLogger(__name__)
 #: The camera measures a resting object against the hand when the tcp is this close to it (m).
 HAND_NEAR_M = 0.1
 
+#: The open pads reach around a resting object, and hide the sides a fit needs, once the tcp is closer to it
+#: than half its largest extent plus this (m): the "moved" watch stops looking then.
+PADS_AROUND_M = 0.04
+
 
 class Observer(Protocol):
     """Everything a skill may know about the object and the grip (SI units, world frame).
@@ -318,6 +322,7 @@ class SensorObserver:
         self._hand = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "gripper_base")
         self._hand_mass = float(m.body_subtreemass[self._hand])
         self._gripper = gripper.GripperGeometry.measure(robot)  # its pads, for the grasp model's contacts
+        self._pads_around_m = float(np.max(robot.scene.object.geometry().extent_m)) / 2 + PADS_AROUND_M
         self._g = float(-m.opt.gravity[2])
         self._belief = pin.SE3.Identity()  # where the robot believes the resting object is
         self._observed = pin.SE3.Identity()  # where it was when last observed
@@ -419,8 +424,12 @@ class SensorObserver:
 
     def moved_m(self) -> float:
         """Distance of the camera's latest re-check from where the object was observed, both measured the same
-        way (m): against the hand if the observation was."""
-        self._recheck(from_hand=self._observed_from_hand)
+        way (m): against the hand if the observation was. Once the open pads reach around the object
+        (:data:`PADS_AROUND_M`) the camera no longer tells: the latest re-check stands (the grasp's own checks take
+        over)."""
+        tcp = self.d.site_xpos[self._tcp]
+        if float(np.linalg.norm(tcp - self._belief.translation)) >= self._pads_around_m:
+            self._recheck(from_hand=self._observed_from_hand)
         return self._moved
 
     def object_velocity(self) -> np.ndarray:
