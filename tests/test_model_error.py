@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import mujoco
@@ -155,3 +156,33 @@ def test_gripper_drive(robot: Robot) -> None:
     assert info.value.field == "gripper.grip_force_n" and "235" in str(info.value)
     with pytest.raises(ConfigError, match=r"gripper\.closing_speed_m_s"):
         gripper.GripperConfig(closing_speed_m_s=0.0)
+
+
+def _closing_lag_m(robot: Robot) -> float:
+    """How far the mirrored finger trails the driven one (m), median over the free closing stroke."""
+    d = robot.make_data()
+    h = robot.handles
+    gripper.command(robot, d, closed=True)
+    lags = []
+    for _ in range(400):
+        d.ctrl[h.arm_actuators] = d.qfrc_bias[h.arm_dof]
+        mujoco.mj_step(robot.mj, d)
+        if 0.01 < d.qpos[h.finger_qpos[0]] < 0.03:
+            lags.append(float(d.qpos[h.finger_qpos[0]] - d.qpos[h.finger_qpos[1]]))
+    return float(np.median(lags))
+
+
+def test_the_realistic_fingers_are_coupled_like_a_linkage(robot: Robot) -> None:
+    """The 2F-85's linkage: the mirrored finger trails the driven one by far less than with the coupling as
+    built, at the same closing speed (the lag is what shifts the grip's centre on first contact)."""
+    real = gripper.with_gripper(robot, gripper.GripperConfig.realistic())
+    soft = gripper.with_gripper(robot, dataclasses.replace(gripper.GripperConfig.realistic(),
+                                                           coupling_timeconst_s=gripper.IDEAL_COUPLING_TIMECONST_S))
+    eq = mujoco.mj_name2id(robot.mj, mujoco.mjtObj.mjOBJ_EQUALITY, "finger_coupling")
+    assert real.mj.eq_solref[eq, 0] == pytest.approx(0.002) and robot.mj.eq_solref[eq, 0] == pytest.approx(0.005)
+    stiff_lag, soft_lag = _closing_lag_m(real), _closing_lag_m(soft)
+    print(f"\nmirrored finger's lag at 0.15 m/s: coupling as built {soft_lag * 1e3:.3f} mm, linkage "
+          f"{stiff_lag * 1e3:.3f} mm")
+    assert 0.0 < stiff_lag < 0.5 * soft_lag
+    with pytest.raises(ConfigError, match=r"gripper\.coupling_timeconst_s.*two physics steps"):
+        gripper.with_gripper(robot, gripper.GripperConfig(coupling_timeconst_s=0.0015))

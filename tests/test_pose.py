@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from pickplace.grasping.targets import object_yaw
 from pickplace.perception.camera import DepthCamera, point_cloud, sensor_depth
-from pickplace.perception.pose import ObjectNotSeen, fit_resting_pose, segment
+from pickplace.perception.pose import ObjectNotSeen, SurfaceModel, fit_held_pose, fit_resting_pose, segment
 from pickplace.robot.kinematics import wrap_to_pi
 from pickplace.robot.model import build
 from pickplace.world.config import SceneConfig
@@ -77,3 +78,20 @@ def test_perception_benchmark_runs_and_reports_against_the_truth() -> None:
     for look in (table, hand):
         assert look["yaw_error_rad"]["max"] < np.radians(5.0)
         assert 0.0 < look["residual_rms_m"]["median"] < 0.004
+
+
+def test_held_fit_measures_only_the_free_axes() -> None:
+    """In the hand the fit moves the object only along the free axes (along the pads' faces); along the others
+    (the closing axis, where the pads centre it) it keeps the grasp model's position exactly."""
+    obj = SceneConfig().object
+    model = SurfaceModel(obj)
+    s, top = model.samples, model.samples.max(axis=0) - 1e-6
+    seen = s[(s[:, 0] > top[0]) | (s[:, 1] > top[1]) | (s[:, 2] > top[2])]  # three faces, as a camera sees a box
+    truth = np.array([0.4, 0.1, 0.5])
+    points = seen + truth + np.array([0.003, 0.002, 0.0])  # held 3 mm along x and 2 mm along y off the model
+    guess = pin.SE3(np.eye(3), truth.copy())
+    along_x = fit_held_pose(points, obj, guess, np.random.default_rng(0), model=model, free_axes=np.eye(3)[:, :1])
+    t = along_x.T_world_object.translation - truth
+    assert abs(t[0] - 0.003) < 2e-4 and t[1] == 0.0 and t[2] == 0.0
+    both = fit_held_pose(points, obj, guess, np.random.default_rng(0), model=model, free_axes=np.eye(3)[:, :2])
+    assert np.allclose(both.T_world_object.translation - truth, [0.003, 0.002, 0.0], atol=2e-4)

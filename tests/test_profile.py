@@ -172,3 +172,18 @@ def test_the_object_not_seen_is_a_clear_failure_before_the_arm_moves() -> None:
     assert not r.success and r.failure_phase == "IDLE"
     assert r.failure_kind == "ObjectNotSeen" and "no point of the table top" in (r.failure_reason or "")
     assert r.cycle_time_s == 0.0  # nothing moved
+
+
+def test_a_robot_compensates_the_payload_it_weighed() -> None:
+    """After the lift the controllers compensate the mass the wrist weighed in the realistic profile (the
+    model's is what the robot believed before weighing), the model's (exact) mass in the ideal one."""
+    robot = build(REALISTIC.scene)
+    d = robot.make_data()
+    ideal = REALISTIC.with_profile("ideal").profile.observer(robot, d, np.random.default_rng(0))
+    real = REALISTIC.profile.observer(robot, d, np.random.default_rng(0))
+    try:
+        assert ideal.payload_mass_kg(0.15, 0.4) == 0.15
+        assert real.payload_mass_kg(0.15, 0.4) == 0.4
+        assert real.payload_mass_kg(0.15, float("nan")) == 0.15  # nothing weighed: the model's
+    finally:
+        real.close()
