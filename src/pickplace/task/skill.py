@@ -62,6 +62,10 @@ log = logging.getLogger(__name__)
 #: enough still for the camera to measure the object against the hand.
 LOOK_BACK_OFF_M = 0.04
 
+#: The farthest point of the open fingers from the tcp's approach axis (m): a re-aim that turns the hand by an
+#: angle moves them by up to this times the angle.
+FINGER_REACH_M = 0.06
+
 
 class _SetDown(Exception):
     """The table carries the object being set down (a guarded set-down ends here)."""
@@ -187,21 +191,29 @@ class PickPlaceSkill:
 
     def _reaim(self) -> pin.SE3 | None:
         """The grasp on the object as now believed (its yaw the symmetric equivalent nearest the one planned
-        for), the hand turned and moved to its pregrasp by a direct joint move. A grasp farther than the
-        planner's margin from the planned one (the straight approach was checked with that clearance) solves
-        the grasps again instead, and returns None: plan a new approach (once per observation)."""
+        for), the hand turned and moved to its pregrasp by a direct joint move. A re-aim that would move the
+        fingers farther than the planner's margin (the straight approach was checked with that clearance: the
+        shift plus the turn times :data:`FINGER_REACH_M`) solves the grasps again instead, and returns None: plan
+        a new approach. Once per observation: a second look that still disagrees that much leaves the planned
+        grasp as it is (a direct move that far would be unchecked)."""
         assert self.configs is not None
         targets, robot = self.configs.targets, self.robot
         seen = self._object_pose()
         grasp = self._grasp_on(seen)
         turn = float(np.linalg.norm(pin.log3(targets.grasp.rotation.T @ grasp.rotation)))
         shift = float(np.linalg.norm(grasp.translation - targets.grasp.translation))
+        reach = shift + turn * FINGER_REACH_M
+        if reach > self.cfg.planning_margin_m and self._reaimed:
+            log.warning("DESCEND: the look from the hand puts the %s's grasp %.1f mm and %.1f deg from the plan "
+                        "after planning again: descending as planned", robot.scene.object.name, shift * 1e3,
+                        math.degrees(turn))
+            return targets.grasp
         t0 = time.perf_counter()
         try:
-            if shift > self.cfg.planning_margin_m and not self._reaimed:
+            if reach > self.cfg.planning_margin_m:
                 self._reaimed = True
-                log.info("DESCEND: the %s is %.1f mm from where the grasp was planned: planning again",
-                         robot.scene.object.name, shift * 1e3)
+                log.info("DESCEND: the %s's grasp is %.1f mm and %.1f deg from the planned one: planning again",
+                         robot.scene.object.name, shift * 1e3, math.degrees(turn))
                 self._adopt(self._solve_grasps(seen))
                 self.arm.note_ik(*self.configs.results())
                 return None
