@@ -122,20 +122,26 @@ def test_friction_is_in_the_plant_only(robot: Robot) -> None:
 # --------------------------------------------------------------------------- #
 
 
-def _free_closing_speed(robot: Robot) -> float:
-    """Finger speed (m/s) measured mid-stroke, closing on nothing (the arm held by the weld of its motors off)."""
+def _free_close(robot: Robot) -> tuple[float, float]:
+    """The driven finger's speed (m/s) and how far the mirrored one trails it (m), medians mid-stroke, closing on
+    nothing (the arm held up by gravity compensation)."""
     d = robot.make_data()
     h = robot.handles
     d.qpos[h.arm_qpos] = robot.home_q
     mujoco.mj_forward(robot.mj, d)
     gripper.command(robot, d, closed=True)
-    speeds = []
+    speeds, lags = [], []
     for _ in range(400):
         d.ctrl[h.arm_actuators] = d.qfrc_bias[h.arm_dof]
         mujoco.mj_step(robot.mj, d)
         if 0.01 < d.qpos[h.finger_qpos[0]] < 0.03:
             speeds.append(float(d.qvel[h.finger_dof[0]]))
-    return float(np.median(speeds))
+            lags.append(float(d.qpos[h.finger_qpos[0]] - d.qpos[h.finger_qpos[1]]))
+    return float(np.median(speeds)), float(np.median(lags))
+
+
+def _free_closing_speed(robot: Robot) -> float:
+    return _free_close(robot)[0]
 
 
 def test_gripper_drive(robot: Robot) -> None:
@@ -158,20 +164,6 @@ def test_gripper_drive(robot: Robot) -> None:
         gripper.GripperConfig(closing_speed_m_s=0.0)
 
 
-def _closing_lag_m(robot: Robot) -> float:
-    """How far the mirrored finger trails the driven one (m), median over the free closing stroke."""
-    d = robot.make_data()
-    h = robot.handles
-    gripper.command(robot, d, closed=True)
-    lags = []
-    for _ in range(400):
-        d.ctrl[h.arm_actuators] = d.qfrc_bias[h.arm_dof]
-        mujoco.mj_step(robot.mj, d)
-        if 0.01 < d.qpos[h.finger_qpos[0]] < 0.03:
-            lags.append(float(d.qpos[h.finger_qpos[0]] - d.qpos[h.finger_qpos[1]]))
-    return float(np.median(lags))
-
-
 def test_the_realistic_fingers_are_coupled_like_a_linkage(robot: Robot) -> None:
     """The 2F-85's linkage: the mirrored finger trails the driven one by far less than with the coupling as
     built, at the same closing speed (the lag is what shifts the grip's centre on first contact)."""
@@ -180,7 +172,7 @@ def test_the_realistic_fingers_are_coupled_like_a_linkage(robot: Robot) -> None:
                                                            coupling_timeconst_s=gripper.IDEAL_COUPLING_TIMECONST_S))
     eq = mujoco.mj_name2id(robot.mj, mujoco.mjtObj.mjOBJ_EQUALITY, "finger_coupling")
     assert real.mj.eq_solref[eq, 0] == pytest.approx(0.002) and robot.mj.eq_solref[eq, 0] == pytest.approx(0.005)
-    stiff_lag, soft_lag = _closing_lag_m(real), _closing_lag_m(soft)
+    stiff_lag, soft_lag = _free_close(real)[1], _free_close(soft)[1]
     print(f"\nmirrored finger's lag at 0.15 m/s: coupling as built {soft_lag * 1e3:.3f} mm, linkage "
           f"{stiff_lag * 1e3:.3f} mm")
     assert 0.0 < stiff_lag < 0.5 * soft_lag
