@@ -349,13 +349,7 @@ class SensorObserver:
         hand is next to it (within reach of the camera's view of the hand)."""
         close = near is not None and self._hand_near(near)
         est = self.camera.locate(self.d, near=near, start=near, from_hand=close, views=self.sensing.views_per_look)
-        self.observations += 1
-        self._belief = self._observed = self._seen = est.T_world_object
-        self._observed_from_hand = close
-        self._T_tcp_object = None
-        self._checks = [(float(self.d.time), est.T_world_object.translation.copy(), close)]
-        self._looked_at = float(self.d.time)
-        self._moved = 0.0
+        self._adopt_observation(est.T_world_object, close)
         log.debug("observed the %s at (%.4f, %.4f) m, residual %.2f mm, %d points", self.robot.scene.object.name,
                   *est.T_world_object.translation[:2], est.residual_m * 1e3, est.points)
         return est.T_world_object
@@ -373,15 +367,22 @@ class SensorObserver:
         except ObjectNotSeen as exc:
             log.debug("from the hand: not seen (%s); the belief stays", exc)
             return False
-        self.observations += 1
         log.debug("from the hand: the %s is %.1f mm from the belief", self.robot.scene.object.name,
                   np.linalg.norm(est.T_world_object.translation - self._belief.translation) * 1e3)
-        self._belief = self._observed = self._seen = est.T_world_object
-        self._observed_from_hand = True
-        self._checks = [(float(self.d.time), est.T_world_object.translation.copy(), True)]
-        self._looked_at = float(self.d.time)
-        self._moved = 0.0
+        self._adopt_observation(est.T_world_object, True)
         return True
+
+    def _adopt_observation(self, T_world_object: pin.SE3, from_hand: bool) -> None:
+        """A new observation of the resting object (``from_hand``: measured against the hand): the belief, and
+        the reference the "moved" and "at rest" re-checks compare with, measured the same way."""
+        self.observations += 1
+        self._belief = self._observed = self._seen = T_world_object
+        self._observed_from_hand = from_hand
+        self._T_tcp_object = None
+        t = float(self.d.time)
+        self._checks = [(t, T_world_object.translation.copy(), from_hand)]
+        self._looked_at = t
+        self._moved = 0.0
 
     def _hand_near(self, T_world_object: pin.SE3) -> bool:
         """Whether the tcp is within ``HAND_NEAR_M`` of the object at this pose (the camera can measure it

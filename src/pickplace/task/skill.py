@@ -431,10 +431,7 @@ class PickPlaceSkill:
 
         rested = self.arm.hold_until(self.arm.q, released, cfg.release_timeout_s, min_s=cfg.poll_s)
         if not rested and cleared() and not math.isfinite(speed()):  # the open pads hide it from the camera
-            log.info("RELEASE: the camera does not see the %s next to the open pads; backing off %.0f mm to look "
-                     "again", robot.scene.object.name, LOOK_BACK_OFF_M * 1e3)
-            self.arm.linear(Phase.RELEASE, backed_off(self.arm.tcp_pose(), LOOK_BACK_OFF_M).translation)
-            self._backed_off_m = LOOK_BACK_OFF_M
+            self._back_off_to_look(f"the camera does not see the {robot.scene.object.name} next to the open pads")
             rested = self.arm.hold_until(self.arm.q, released, cfg.release_timeout_s, min_s=cfg.poll_s)
         if not rested:
             forces = observer.pad_forces()
@@ -450,9 +447,7 @@ class PickPlaceSkill:
         except ObjectNotSeen as exc:  # the open pads hide it: back off a little and look again
             if self._backed_off_m > 0.0:
                 raise
-            log.info("RELEASE: %s; backing off %.0f mm to look again", exc, LOOK_BACK_OFF_M * 1e3)
-            self.arm.linear(Phase.RELEASE, backed_off(self.arm.tcp_pose(), LOOK_BACK_OFF_M).translation)
-            self._backed_off_m = LOOK_BACK_OFF_M
+            self._back_off_to_look(str(exc))
             seen = self._observe(near=observer.object_pose())
         xy, z, yaw = self._place_errors(seen)
         name = robot.scene.object.name
@@ -469,6 +464,13 @@ class PickPlaceSkill:
         if wrong:
             raise PhaseFailed(Phase.RELEASE, "; ".join(wrong))
         return Phase.RETRACT
+
+    def _back_off_to_look(self, why: str) -> None:
+        """Back the open hand off the released object by :data:`LOOK_BACK_OFF_M` along the approach, so that the
+        camera sees the object again (RETRACT backs off that much less)."""
+        log.info("RELEASE: %s; backing off %.0f mm to look again", why, LOOK_BACK_OFF_M * 1e3)
+        self.arm.linear(Phase.RELEASE, backed_off(self.arm.tcp_pose(), LOOK_BACK_OFF_M).translation)
+        self._backed_off_m = LOOK_BACK_OFF_M
 
     def _place_errors(self, T_world_object: pin.SE3) -> tuple[float, float, float]:
         """Horizontal (m), height (m) and yaw (rad, modulo the object's symmetry) error of an object at rest at
