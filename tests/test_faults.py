@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import re
+from collections.abc import Callable
 
 import pytest
 
@@ -83,21 +84,27 @@ def test_cube_pushed_before_the_pick_detected_and_reobserved() -> None:
     assert r.place_error_xy_m <= 1.4e-3
 
 
-def test_slippery_pads_detected_in_lift_and_not_retried_forever() -> None:
-    """Friction 0.02 (the reference design's slipping cube): detected in LIFT. The regrasp slips the same way,
-    so the machine stops retrying: the cause is not transient."""
+def check_slippery_pads(run: Callable[..., EpisodeResult], phase_start: Callable[[EpisodeResult, str], float],
+                        label: str = "") -> None:
+    """Friction 0.02 (the reference design's slipping cube): detected in LIFT within 0.3 s. The regrasp slips the
+    same way, so the machine stops retrying: the cause is not transient. ``run(faults, recovery=...)`` runs the
+    episode in a profile; ``phase_start`` is when a phase started; ``label`` prefixes the report."""
     faults = FaultConfig(pad_friction_scale=0.02)
-    r = _run(faults, recovery=False)
-    _report("pad friction x0.02, no recovery", r, r.cycle_time_s - _phase_start(r, "LIFT"))
+    r = run(faults, recovery=False)
+    _report(f"{label}pad friction x0.02, no recovery", r, r.cycle_time_s - phase_start(r, "LIFT"))
     assert (r.failure_phase, r.failure_kind) == ("LIFT", "GraspFailed")
     assert "slipped" in r.failure_reason
-    assert r.cycle_time_s - _phase_start(r, "LIFT") <= 0.3
+    assert r.cycle_time_s - phase_start(r, "LIFT") <= 0.3
 
-    r = _run(faults, recovery=True)
-    _report("pad friction x0.02, with recovery", r)
+    r = run(faults, recovery=True)
+    _report(f"{label}pad friction x0.02, with recovery", r)
     assert not r.success and r.failure_phase == "LIFT"
     assert r.retries == 1 and "slipped" in r.recoveries[0]
     assert "slipped" in r.failure_reason and "not transient" in r.failure_reason
+
+
+def test_slippery_pads_detected_in_lift_and_not_retried_forever() -> None:
+    check_slippery_pads(_run, _phase_start)
 
 
 def test_half_friction_and_sensor_noise_are_tolerated() -> None:

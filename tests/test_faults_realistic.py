@@ -26,7 +26,9 @@ import pytest
 from pickplace.task.episode import EpisodeConfig, EpisodeResult, run_episode
 from pickplace.task.faults import FaultConfig
 from pickplace.task.machine import MachineConfig
-from test_faults import PRE_PICK_PUSH, TRANSPORT_PUSH, _report  # the same faults, reported the same way
+
+# the same faults, reported (and for slippery pads checked) the same way
+from test_faults import PRE_PICK_PUSH, TRANSPORT_PUSH, _report, check_slippery_pads
 
 pytestmark = pytest.mark.slow
 
@@ -69,16 +71,7 @@ def test_cube_pushed_before_the_pick_seen_by_the_camera() -> None:
 
 
 def test_slippery_pads_felt_by_the_fingers_in_lift_and_not_retried_forever() -> None:
-    faults = FaultConfig(pad_friction_scale=0.02)
-    r = _run(faults, recovery=False)
-    _report("realistic, pad friction x0.02, no recovery", r, r.cycle_time_s - _start(r, "LIFT"))
-    assert (r.failure_phase, r.failure_kind) == ("LIFT", "GraspFailed")
-    assert "slipped" in r.failure_reason
-    assert r.cycle_time_s - _start(r, "LIFT") <= 0.3
-
-    r = _run(faults, recovery=True)
-    _report("realistic, pad friction x0.02, with recovery", r)
-    assert not r.success and r.failure_phase == "LIFT" and "not transient" in r.failure_reason
+    check_slippery_pads(_run, _start, "realistic, ")
 
 
 def test_half_friction_and_sensor_noise_are_tolerated() -> None:
