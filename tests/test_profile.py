@@ -17,6 +17,8 @@ import pytest
 from scipy import ndimage
 
 from pickplace.errors import ConfigError
+from pickplace.grasping import configurations
+from pickplace.motion.collision import CollisionChecker
 from pickplace.motion.control import ControlConfig
 from pickplace.motion.loop import LoopConfig
 from pickplace.perception.camera import CameraConfig, DepthCamera
@@ -27,7 +29,7 @@ from pickplace.robot.ik import IKConfig, solve_ik
 from pickplace.robot.model import build
 from pickplace.robot.model_error import ModelErrorConfig
 from pickplace.task.episode import EpisodeConfig, run_episode
-from pickplace.task.observe import SimulatorObserver
+from pickplace.task.observe import SensorObserver, SimulatorObserver
 from pickplace.task.profile import ProfileConfig
 from pickplace.world.config import SceneConfig
 
@@ -140,11 +142,32 @@ def _poison(monkeypatch: pytest.MonkeyPatch) -> None:
         monkeypatch.setattr(SimulatorObserver, name, guard(name, getattr(SimulatorObserver, name)))
     for name in ("pad_forces", "pad_load", "pad_contacts"):
         monkeypatch.setattr(gripper, name, guard(name, getattr(gripper, name)))
+    # the planners' collision world: never the simulation itself (the object's pose and anything that appeared
+    # would come with it), only the robot's believed world
+    simulations: list[mujoco.MjData] = []
+    sensor_init = SensorObserver.__init__
+
+    def record(self: SensorObserver, robot: object, data: mujoco.MjData, *args: object) -> None:
+        simulations.append(data)
+        sensor_init(self, robot, data, *args)  # type: ignore[arg-type]
+
+    def world_guard(name: str, original: object, at: int) -> object:
+        def read(*args: object, **kwargs: object) -> object:
+            world = args[at] if len(args) > at else None
+            if any(world is sim for sim in simulations):
+                raise AssertionError(f"{name} was given the simulation as the planners' world")
+            return original(*args, **kwargs)  # type: ignore[operator]
+        return read
+
+    monkeypatch.setattr(SensorObserver, "__init__", record)
+    monkeypatch.setattr(CollisionChecker, "set_world", world_guard("set_world", CollisionChecker.set_world, 1))
+    monkeypatch.setattr(configurations, "_world_copy", world_guard("_world_copy", configurations._world_copy, 1))
 
 
 def test_a_realistic_episode_never_reads_the_simulators_object_state(monkeypatch: pytest.MonkeyPatch) -> None:
     """The access test: with every accessor of the object's state and of the contact forces poisoned (they
-    raise for anyone but the episode's measurements), a realistic episode runs exactly as without poison,
+    raise for anyone but the episode's measurements), and the simulation refused as the planners' collision
+    world (grasps and paths are checked in the believed world), a realistic episode runs exactly as without poison,
     and places the cube within the realistic profile's bounds."""
     clean = run_episode(REALISTIC, seed=2)
     # the same episode in the ideal profile reads the truth: its estimates are exact

@@ -25,7 +25,15 @@ import numpy as np
 import pinocchio as pin
 
 from pickplace.errors import CollisionError
-from pickplace.robot.model import Handles, Robot, add_object_geoms, quiet_attach, scene_spec
+from pickplace.robot.model import (
+    SEEN_COLUMNS,
+    SEEN_OBSTACLE,
+    Handles,
+    Robot,
+    add_object_geoms,
+    quiet_attach,
+    scene_spec,
+)
 from pickplace.world.config import SceneConfig, check_range
 
 log = logging.getLogger(__name__)
@@ -238,10 +246,14 @@ HELD_PREFIX = "held_"
 def _checker_model(scene: SceneConfig) -> mujoco.MjModel:
     """The scene compiled with a copy of the object welded to the tcp's body (compiled once per scene).
 
-    Nothing else changes: the qpos layout is the simulation's, so world states carry over. Each checker
+    The seen-obstacle columns collide here (in the simulation they do not exist). Nothing else changes: the
+    qpos and mocap layouts are the simulation's, so world states carry over. Each checker
     works on its own deep copy (it edits the collision bits, the margins and the held object's pose).
     """
     spec = scene_spec(scene)
+    for i in range(SEEN_COLUMNS):  # the obstacles the robot has seen take part here (as the map's do)
+        column = spec.geom(f"{SEEN_OBSTACLE}{i:02d}")
+        column.contype, column.conaffinity = 1, 1
     tcp_body = spec.site("tcp").parent
     held = tcp_body.add_body(name=HELD_PREFIX + "object")
     add_object_geoms(spec, held, scene.object, contact=False, prefix=HELD_PREFIX)

@@ -194,6 +194,11 @@ class TableCamera:
         window[max(0, int(v - r)):max(0, int(v + r) + 1), max(0, int(u - r)):max(0, int(u + r) + 1)] = True
         return window
 
+    def object_sphere(self, T_world_object: pin.SE3) -> tuple[np.ndarray, float]:
+        """The sphere (centre (3,) (m), radius (m)) the object at this pose is looked for in: its bounding
+        sphere widened by :data:`SEARCH_MARGIN_M`."""
+        return T_world_object.act(self._centre_local), self._radius_m
+
     def _near(self, points: np.ndarray, T_world_object: pin.SE3) -> np.ndarray:
         centre = T_world_object.act(self._centre_local)
         return points[np.linalg.norm(points - centre, axis=1) < self._radius_m]

@@ -86,6 +86,19 @@ INTRUDER_PARKED_POS = (5.0, 5.0, 5.0)
 #: Half sizes of the intruder box (m): thin along x, 0.2 m across, 0.25 m tall.
 INTRUDER_HALF_SIZE_M = (0.02, 0.10, 0.125)
 
+#: Prefix of the mocap bodies (and geoms) that hold obstacles the robot has seen but its map does not have: a
+#: column per occupied cell of a height map (:mod:`pickplace.perception.obstacles`). They exist for the
+#: planners' believed world only: in the simulation they collide with nothing and no sensor sees them.
+SEEN_OBSTACLE = "seen_obstacle"
+#: How many such columns the believed world holds.
+SEEN_COLUMNS = 64
+#: Side of a column's square cross-section (m): the height map's cell.
+SEEN_CELL_M = 0.04
+#: Half height of a column (m): from its top (the highest point seen in its cell) down past the table top.
+SEEN_HALF_HEIGHT_M = 0.3
+#: Where unused columns wait, far from everything (m).
+SEEN_PARKED_POS = (-5.0, -5.0, -5.0)
+
 
 def scene_spec(scene: SceneConfig) -> mujoco.MjSpec:
     """The full scene for MuJoCo: world, robot, table, object, goal marker and optional obstacle.
@@ -136,6 +149,12 @@ def scene_spec(scene: SceneConfig) -> mujoco.MjSpec:
     intruder = spec.worldbody.add_body(name=INTRUDER, pos=list(INTRUDER_PARKED_POS), mocap=True)
     intruder.add_geom(name=INTRUDER, type=mujoco.mjtGeom.mjGEOM_BOX, size=list(INTRUDER_HALF_SIZE_M),
                       material="obstacle")
+    # Obstacles the robot has seen (the believed world's): parked, collision-free and hidden in the simulation.
+    for i in range(SEEN_COLUMNS):
+        column = spec.worldbody.add_body(name=f"{SEEN_OBSTACLE}{i:02d}", pos=list(SEEN_PARKED_POS), mocap=True)
+        column.add_geom(name=f"{SEEN_OBSTACLE}{i:02d}", type=mujoco.mjtGeom.mjGEOM_BOX,
+                        size=[SEEN_CELL_M / 2, SEEN_CELL_M / 2, SEEN_HALF_HEIGHT_M], contype=0, conaffinity=0,
+                        group=5, rgba=[1.0, 0.5, 0.0, 0.4])
 
     if scene.obstacle:
         ox, oy = obstacle_xy(scene)

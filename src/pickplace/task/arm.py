@@ -202,15 +202,15 @@ class Arm:
         return dataclasses.replace(self.ctrl, vertical_accel_m_s2=limit)
 
     def predict(self, t_start: float) -> Callable[[mujoco.MjData, float], None]:
-        """A check of the rest of the running trajectory against the world as it is now."""
+        """A check of the rest of the running trajectory against the world as the robot sees it now."""
         traj, checker = self.trajectory, self.segment_checker
         assert traj is not None and checker is not None
 
-        def predictor(d: mujoco.MjData, t: float) -> None:
+        def predictor(_: mujoco.MjData, t: float) -> None:
             ts = np.arange(t - t_start, traj.duration_s, 0.01)
             if ts.size == 0:
                 return
-            checker.set_world(d)
+            checker.set_world(self.observer.world())
             qs, _, _ = traj.sample_many(ts)
             if not checker.all_valid(qs):
                 valid = checker.are_valid(qs)
@@ -220,13 +220,14 @@ class Arm:
         return predictor
 
     def free(self, margin_m: float) -> CollisionChecker:
-        """A checker for the empty hand, with the world (the object, anything that moved) as it is now."""
-        return CollisionChecker(self.robot, CollisionPolicy(margin_m=margin_m), world=self.d)
+        """A checker for the empty hand, in the world as the robot believes it is now (the object where it was
+        seen, what the camera sees besides the map: :meth:`Observer.world`)."""
+        return CollisionChecker(self.robot, CollisionPolicy(margin_m=margin_m), world=self.observer.world())
 
     def carrying(self, margin_m: float, allow_object_table: bool) -> CollisionChecker:
         policy = CollisionPolicy(margin_m=margin_m, object_held=True, allow_object_table=allow_object_table,
                                  finger_m=gripper.finger_travel(self.robot, self.d))
-        return CollisionChecker(self.robot, policy, world=self.d, T_tcp_object=self.T_tcp_object)
+        return CollisionChecker(self.robot, policy, world=self.observer.world(), T_tcp_object=self.T_tcp_object)
 
     def execute(self, phase: Phase) -> None:
         assert self.trajectory is not None

@@ -22,9 +22,10 @@ import numpy as np
 import pinocchio as pin
 
 from pickplace.perception.camera import CameraConfig
+from pickplace.perception.obstacles import ObstacleCamera, place_columns
 from pickplace.perception.pose import ObjectNotSeen
 from pickplace.robot import gripper
-from pickplace.robot.model import Robot
+from pickplace.robot.model import SEEN_COLUMNS, SEEN_OBSTACLE, Robot
 from pickplace.world.config import check_int, check_range
 from pickplace.world.contact import Contact
 
@@ -132,6 +133,12 @@ class Observer(Protocol):
         """Why the sensors say the object is no longer held, or None."""
         ...
 
+    def world(self) -> mujoco.MjData:
+        """The world the planners check paths and grasps against (a simulation state of the robot's model:
+        the object's pose, the obstacles' mocap bodies; the arm's joints in it mean nothing): the world as the
+        robot believes it is. Valid until the next call."""
+        ...
+
     def close(self) -> None:
         """Release the sensors' resources."""
         ...
@@ -237,6 +244,10 @@ class SimulatorObserver:
         """Never: a lost grip shows as slip."""
         return None
 
+    def world(self) -> mujoco.MjData:
+        """The simulation itself: everything where it is (an obstacle that appears included)."""
+        return self.d
+
     def close(self) -> None:
         """Nothing to release."""
 
@@ -264,6 +275,10 @@ class SensingConfig:
         views_per_look: Depth frames fitted together at each look that decides something (the observation
             before the pick, the look from the hand above it, the place check; 3 frames: 0.1 s of a 30 Hz
             stream): their noise averages (the re-checks take one).
+        obstacle_period_s: Period of the camera's looks for unknown obstacles while the robot plans and moves
+            along a planned path (s) (:mod:`pickplace.perception.obstacles`): each renders, filters and bins
+            an image (about 20 ms of processing here), so 10 Hz; the predictor checks the rest of the path
+            against the latest.
     """
 
     wrist_force_noise_n: float = 0.1
@@ -273,6 +288,7 @@ class SensingConfig:
     watch_period_s: float = 0.1
     rest_window_s: float = 0.2
     views_per_look: int = 3
+    obstacle_period_s: float = 0.1
 
     def __post_init__(self) -> None:
         check_range("sensing.wrist_force_noise_n", self.wrist_force_noise_n, 0.0, 10.0, unit="N")
@@ -282,6 +298,7 @@ class SensingConfig:
         check_range("sensing.watch_period_s", self.watch_period_s, 0.001, 1.0, unit="s")
         check_range("sensing.rest_window_s", self.rest_window_s, 0.01, 2.0, unit="s")
         check_int("sensing.views_per_look", self.views_per_look, 1, 30)
+        check_range("sensing.obstacle_period_s", self.obstacle_period_s, 0.01, 2.0, unit="s")
 
 
 class SensorObserver:
@@ -317,6 +334,14 @@ class SensorObserver:
 
         self.robot, self.d, self.sensing, self.rng = robot, data, sensing, rng
         self.camera = TableCamera(robot, camera, rng)
+        # its own noise stream (spawned: the pose fits' stream does not depend on how many obstacle looks ran)
+        self.obstacles = ObstacleCamera(self.camera, rng.spawn(1)[0])
+        self._world = mujoco.MjData(robot.mj)  # the believed world (:meth:`world`)
+        mujoco.mj_resetDataKeyframe(robot.mj, self._world, 0)
+        seen = [mujoco.mj_name2id(robot.mj, mujoco.mjtObj.mjOBJ_BODY, f"{SEEN_OBSTACLE}{i:02d}")
+                for i in range(SEEN_COLUMNS)]
+        self._seen_mocap = robot.mj.body_mocapid[seen]
+        self._obstacles_at = -math.inf  # when the camera last looked for obstacles (s)
         m, h = robot.mj, robot.handles
         self._tcp = h.tcp_site
         self._hand = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "gripper_base")
@@ -584,9 +609,28 @@ class SensorObserver:
                     f"{expected:.2f} N (less than {self.sensing.load_lost_fraction:.0%})")
         return None
 
+    def world(self) -> mujoco.MjData:
+        """The believed world: the robot's map (the model's static geometry; the fault intruder parked, as
+        the map has it), the object at :meth:`object_pose`, and the unknown obstacles the camera saw at its
+        latest look (:class:`~pickplace.perception.obstacles.ObstacleCamera`, a new look when the last is
+        ``obstacle_period_s`` old; the object's surroundings left out, where the robot believes it is)."""
+        w, T = self._world, self.object_pose()
+        a = self.robot.handles.object_qpos
+        w.qpos[a:a + 3] = T.translation
+        mujoco.mju_mat2Quat(w.qpos[a + 3:a + 7], T.rotation.ravel())
+        t = float(self.d.time)
+        if t - self._obstacles_at >= self.sensing.obstacle_period_s:
+            self._obstacles_at = t
+            columns = self.obstacles.columns(self.d, [self.camera.object_sphere(T)])
+            place_columns(w, self._seen_mocap, columns)
+            log.debug("t = %.3f s: the camera sees %d cells of unknown obstacles%s", t, len(columns),
+                      f", up to {columns[0, 2]:.3f} m" if len(columns) else "")
+        return w
+
     def close(self) -> None:
-        """Release the camera's OpenGL context."""
+        """Release the cameras' OpenGL contexts."""
         self.camera.close()
+        self.obstacles.close()
 
 
 __all__ = ["Observer", "SensingConfig", "SensorObserver", "SimulatorObserver"]

@@ -135,7 +135,8 @@ class PickPlaceSkill:
         """The first grasp of the object where it rests whose targets all solve and whose pads hold it (not one
         given up on before)."""
         grasps = [g for g in candidate_grasps(self.robot, T_world_object) if not any(g is d for d in self._dropped)]
-        return solve_grasp_configurations(self.robot, self.ik, T_world_object, self.d, self.cfg.planning_margin_m,
+        return solve_grasp_configurations(self.robot, self.ik, T_world_object, self.observer.world(),
+                                          self.cfg.planning_margin_m,
                                           grasps=grasps, retreat_m=self.cfg.retract_height_m,
                                           safety_factor=self.cfg.grip_safety_factor)
 
