@@ -57,6 +57,7 @@ import pinocchio as pin
 from pickplace.errors import ConfigError, ControlError
 from pickplace.motion.loop import IDEAL, ControlLoop
 from pickplace.motion.timing import Trajectory
+from pickplace.robot.kinematics import frame_jacobian
 from pickplace.robot.model import Robot
 from pickplace.world.config import check_range, check_vector
 from pickplace.world.mass import mass_properties
@@ -146,6 +147,12 @@ class ControlConfig:
             ``joint_ki_nm_rad_s``; 0 (the default): those diagonal gains.
         joint_integral_zero_rad_s: With ``joint_bandwidth_rad_s``: the zero of the joint integral action (rad/s),
             ``Ki = zero * w^2 M(q)``, integrated tick by tick; 0: no integral.
+        comply_while_closing: While the gripper closes on the object, the arm yields along the pads' closing
+            axis (the hold's reference follows the tcp along it every control period: an admittance whose force
+            sensor is the arm's own deflection) and holds stiffly in the other five directions. A hand off the
+            object's centre by the pose estimate's error is then centred by the first pad to touch, instead of
+            that pad pushing the arm (and the object) until the second arrives. The ideal robot knows the
+            object's pose exactly and holds rigidly (default off); :meth:`realistic` turns it on.
     """
 
     joint_kp_nm_rad: tuple[float, ...] = (200.0, 200.0, 200.0, 100.0, 100.0, 100.0)
@@ -175,6 +182,7 @@ class ControlConfig:
     cartesian_integral_zero_rad_s: float = 0.0
     joint_bandwidth_rad_s: float = 0.0
     joint_integral_zero_rad_s: float = 0.0
+    comply_while_closing: bool = False
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -186,6 +194,8 @@ class ControlConfig:
             raise ConfigError("control.cartesian_modal_damping", self.cartesian_modal_damping, "must be true or false")
         if not isinstance(self.feedforward, bool):
             raise ConfigError("control.feedforward", self.feedforward, "must be true or false")
+        if not isinstance(self.comply_while_closing, bool):
+            raise ConfigError("control.comply_while_closing", self.comply_while_closing, "must be true or false")
         set_(self, "cartesian_stiffness_n_m", check_range(
             "control.cartesian_stiffness_n_m", self.cartesian_stiffness_n_m, 0.0, 1e6, lo_open=True, unit="N/m"))
         set_(self, "cartesian_rot_stiffness_nm_rad", check_range(
@@ -276,7 +286,8 @@ class ControlConfig:
         20 ms after the profile (60 rad/s: 0.3 s) and the joint moves stay within 2 mrad (the diagonal gains: 4.2).
         """
         return cls(joint_bandwidth_rad_s=80.0, joint_damping_ratio=1.0, joint_integral_zero_rad_s=32.0,
-                   cartesian_bandwidth_rad_s=80.0, cartesian_damping_ratio=1.0, cartesian_integral_zero_rad_s=32.0)
+                   cartesian_bandwidth_rad_s=80.0, cartesian_damping_ratio=1.0, cartesian_integral_zero_rad_s=32.0,
+                   comply_while_closing=True)
 
     @property
     def joint_kp(self) -> np.ndarray:
@@ -933,8 +944,12 @@ def _run_joint(
     hook: Hook | None,
     noise: JointNoise | None = None,
     loop: ControlLoop | None = None,
+    yielding: np.ndarray | None = None,
 ) -> TrackingRecord:
-    """Run joint impedance along a step-grid reference (n + 1, 6) for n physics steps, through ``loop``."""
+    """Run joint impedance along a step-grid reference (n + 1, 6) for n physics steps, through ``loop``.
+
+    ``yielding`` (6, 6): at every tick the reference from then on moves by ``yielding @ (q - q_ref)`` (the arm
+    yields in that subspace: :func:`hold`'s ``comply_along``); it is edited in place."""
     loop = loop if loop is not None else IDEAL
     h = robot.handles
     arm = arm_model(robot, payload)
@@ -974,6 +989,8 @@ def _run_joint(
         j += 1
         q_log[j] = q
         k_log[j] = i
+        if yielding is not None:
+            q_ref[i:] += yielding @ (q - q_ref[i])
         err = float(abs(q_ref[i] - q).max())
         if not err <= config.max_joint_error_rad:  # also catches NaN
             raise ControlError(phase, f"joint error {err:.4g} rad exceeds {config.max_joint_error_rad:g} rad "
@@ -1056,6 +1073,7 @@ def hold(
     hook: Hook | None = None,
     noise: JointNoise | None = None,
     loop: ControlLoop | None = None,
+    comply_along: np.ndarray | None = None,
 ) -> TrackingRecord:
     """Regulate the arm to a fixed configuration for ``duration_s`` (e.g. while the gripper closes).
 
@@ -1070,12 +1088,17 @@ def hold(
         noise: Noise added to the joint positions the controller reads (a sensor fault), or None.
         loop: The control loop (rate, latency, encoders: :class:`~pickplace.motion.loop.ControlLoop`); None:
             the ideal loop (exact state, every physics step).
+        comply_along: A world direction (3,): the arm yields along it. At every control tick the reference moves
+            by the joint motion of the tcp's displacement along it (measured from the joints read, to first
+            order: ``J^-1 [a a^T 0; 0 0] J``, ``J`` the tcp's Jacobian at ``q``), so the arm is stiff in the
+            other five directions (three turns, two translations) and only damped along it. None: stiff in all.
 
     Returns:
-        The :class:`TrackingRecord` (errors relative to ``q``).
+        The :class:`TrackingRecord` (errors relative to ``q``, or to the reference as it yielded).
 
     Raises:
-        ConfigError: ``q`` is not 6 finite numbers or ``duration_s`` is negative.
+        ConfigError: ``q`` is not 6 finite numbers, ``duration_s`` is negative, or ``comply_along`` is not a
+            non-zero 3-vector.
         ControlError: the joint error exceeds ``config.max_joint_error_rad``.
     """
     target = np.array(check_vector("hold.q", q, N_ARM, unit="rad"))
@@ -1083,7 +1106,22 @@ def hold(
     n = _whole_periods(round(duration_s / float(robot.mj.opt.timestep)), _period(robot, loop))
     q_ref = np.repeat(target[None], n + 1, axis=0)
     zeros = np.zeros_like(q_ref)
-    return _run_joint(robot, data, "hold", q_ref, zeros, zeros, config, payload, hook, noise, loop)
+    yielding = None if comply_along is None else _yielding(robot, target, comply_along)
+    return _run_joint(robot, data, "hold", q_ref, zeros, zeros, config, payload, hook, noise, loop, yielding)
+
+
+def _yielding(robot: Robot, q: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """The joint-space projector (6, 6) onto the tcp's translation along ``direction`` (3,) at ``q`` (6,)."""
+    a = np.array(check_vector("hold.comply_along", direction, 3))
+    norm = float(np.linalg.norm(a))
+    if not norm > 1e-9:
+        raise ConfigError("hold.comply_along", direction, "must be a non-zero direction (3,)")
+    a /= norm
+    pdata = robot.pin.createData()
+    J = frame_jacobian(robot.pin, pdata, robot.pin_q(q), robot.pin_tcp_frame)
+    select = np.zeros((6, 6))
+    select[:3, :3] = np.outer(a, a)
+    return np.linalg.solve(J, select @ J)
 
 
 def stop(

@@ -27,10 +27,13 @@ from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 from scipy import ndimage
 
+from pickplace.motion.collision import CollisionChecker, CollisionPolicy
 from pickplace.perception.camera import DepthCamera, point_cloud, sensor_depth
-from pickplace.robot.model import SEEN_CELL_M, SEEN_COLUMNS, SEEN_HALF_HEIGHT_M, SEEN_PARKED_POS
+from pickplace.robot import gripper
+from pickplace.robot.model import SEEN_CELL_M, SEEN_COLUMNS, SEEN_HALF_HEIGHT_M, SEEN_OBSTACLE, SEEN_PARKED_POS
 
 if TYPE_CHECKING:
     from pickplace.perception.view import TableCamera
@@ -43,6 +46,8 @@ OBSTACLE_IMAGE_PX = (256, 144)
 MIN_CELL_POINTS = 5
 #: Points less than this many times the depth noise (at their depth) above the table top are the table.
 CLEARANCE_SIGMAS = 4.0
+#: Cells closer than this to the arm or the gripper as they stand are their own points, not an obstacle (m).
+OWN_BODY_MARGIN_M = 0.01
 #: The self-filter's widening for the calibration error, at the obstacle images' resolution (px).
 MASK_MARGIN_PX = 1
 
@@ -88,6 +93,13 @@ class ObstacleCamera:
         self.rng = rng
         self.images = 0
         self.wall_s = 0.0
+        # the arm's own body, for dropping the cells it occupies now (:meth:`columns`)
+        robot = view.robot
+        self._body = CollisionChecker(robot, CollisionPolicy(margin_m=OWN_BODY_MARGIN_M))
+        self._probe = robot.make_data()
+        names = [f"{SEEN_OBSTACLE}{i:02d}" for i in range(SEEN_COLUMNS)]
+        self._mocap = robot.mj.body_mocapid[[mujoco.mj_name2id(robot.mj, mujoco.mjtObj.mjOBJ_BODY, n) for n in names]]
+        self._index = {n: i for i, n in enumerate(names)}
 
     def close(self) -> None:
         """Release the OpenGL context."""
@@ -124,12 +136,27 @@ class ObstacleCamera:
 
     def columns(self, d: mujoco.MjData, exclude: list[tuple[np.ndarray, float]]) -> np.ndarray:
         """The occupied cells (k, 3) of the height map of one image now (:func:`height_map`), at most
-        :data:`~pickplace.robot.model.SEEN_COLUMNS` (the highest, with a warning if more are occupied)."""
+        :data:`~pickplace.robot.model.SEEN_COLUMNS` (the highest, with a warning if more are occupied), less
+        those within :data:`OWN_BODY_MARGIN_M` of the arm and the gripper as they stand now (read from their
+        own joints): where the robot is, there is no obstacle, so those points are its own, shifted past the
+        self-filter by the calibration error at a depth edge."""
         cols = height_map(self.points(d, exclude))
         if len(cols) > SEEN_COLUMNS:
             log.warning("the camera sees %d cells of unknown obstacles; the believed world holds the highest %d",
                         len(cols), SEEN_COLUMNS)
             cols = cols[:SEEN_COLUMNS]
+        if not len(cols):
+            return cols
+        h = self.view.robot.handles
+        place_columns(self._probe, self._mocap, cols)
+        self._body.set_world(self._probe)
+        finger_m = float(np.clip(gripper.finger_travel(self.view.robot, d), 0.0, 0.040))
+        self._body.set_held(pin.SE3.Identity(), finger_m=finger_m)  # (the pose: no object is held in this check)
+        own = {self._index[name] for pair in self._body.colliding_pairs(d.qpos[h.arm_qpos]) for name in pair
+               if name in self._index}
+        if own:
+            log.debug("%d of %d cells seen are the robot's own body", len(own), len(cols))
+            cols = cols[[i for i in range(len(cols)) if i not in own]]
         return cols
 
 

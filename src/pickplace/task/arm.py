@@ -131,9 +131,9 @@ class Arm:
         self._tallies.setdefault(self.monitor.phase, control.TrackingTally()).add(rec)
         self._tally_total.add(rec)
 
-    def hold(self, q: np.ndarray, duration_s: float) -> control.TrackingRecord:
+    def hold(self, q: np.ndarray, duration_s: float, comply_along: np.ndarray | None = None) -> control.TrackingRecord:
         rec = control.hold(self.robot, self.d, q, duration_s, self.ctrl, payload=self.payload, hook=self.monitor,
-                           noise=self.noise, loop=self.loop)
+                           noise=self.noise, loop=self.loop, comply_along=comply_along)
         self.count(rec)
         return rec
 
@@ -144,10 +144,12 @@ class Arm:
         self.count(rec)
 
     def hold_until(self, q: np.ndarray | None, done: Callable[[], bool], timeout_s: float,
-                    min_s: float = 0.0) -> bool:
+                    min_s: float = 0.0, comply_along: np.ndarray | None = None) -> bool:
         """Hold ``q`` in steps of ``poll_s`` until ``done()`` (checked from ``min_s`` on) or ``timeout_s`` (s).
 
-        ``q`` None holds the arm where it is at each step (it is not driven anywhere).
+        ``q`` None holds the arm where it is at each step (it is not driven anywhere). ``comply_along`` (3,)
+        (a world direction): the arm yields along it, stiff in every other direction (:func:`control.hold`);
+        each step holds the reference where the last one left it.
 
         Returns:
             Whether ``done()`` became true in time.
@@ -158,7 +160,9 @@ class Arm:
                 return True
             if waited >= timeout_s:
                 return False
-            self.hold(self.q if q is None else q, self.cfg.poll_s)
+            rec = self.hold(self.q if q is None else q, self.cfg.poll_s, comply_along)
+            if comply_along is not None:
+                q = rec.q_ref[-1].copy()
             waited += self.cfg.poll_s
 
     def plan_segment(self, name: str, checker_at: Callable[[float], CollisionChecker], q_goal: np.ndarray) -> None:

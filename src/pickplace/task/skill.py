@@ -241,7 +241,9 @@ class PickPlaceSkill:
             return (gripper.is_settled(robot, d, cfg.finger_settle_speed_m_s)
                     and bool(np.all(self.observer.pad_forces() >= cfg.min_pad_force_n)))
 
-        settled = self.arm.hold_until(self.arm.q, gripping, cfg.close_timeout_s, min_s=5 * cfg.poll_s)
+        comply = self.arm.tcp_pose().rotation[:, 1] if self.arm.ctrl.comply_while_closing else None  # pads' axis
+        settled = self.arm.hold_until(self.arm.q, gripping, cfg.close_timeout_s, min_s=5 * cfg.poll_s,
+                                      comply_along=comply)
         forces = self.observer.pad_forces()
         if not settled:
             travel = gripper.finger_travel(robot, d)
