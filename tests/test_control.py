@@ -50,6 +50,7 @@ def _tcp(robot: Robot, d: mujoco.MjData) -> np.ndarray:
     ({"joint_kp_nm_rad": (200, 200, 200)}, "control.joint_kp_nm_rad"),
     ({"joint_damping_ratio": 0.0}, "control.joint_damping_ratio"),
     ({"feedforward": 1}, "control.feedforward"),
+    ({"comply_while_closing": "yes"}, "control.comply_while_closing"),
     ({"cartesian_stiffness_n_m": -5.0}, "control.cartesian_stiffness_n_m"),
     ({"cartesian_rot_stiffness_nm_rad": math.inf}, "control.cartesian_rot_stiffness_nm_rad"),
     ({"posture_kp_nm_rad": math.nan}, "control.posture_kp_nm_rad"),
@@ -357,3 +358,38 @@ def test_stop_brings_a_fast_arm_to_rest_along_its_motion(robot: Robot) -> None:
     assert held.max_error_rad > 5 * rec.max_error_rad
     with pytest.raises(ConfigError, match=r"stop\.decel_rad_s2"):
         control.stop(robot, moving(), (8.0, 8.0, 0.0, 16.0, 16.0, 16.0), ControlConfig())
+
+
+def test_a_hold_that_complies_along_an_axis_yields_there_and_stays_stiff_across(robot: Robot,
+                                                                               configs: GraspConfigurations) -> None:
+    """A 20 N push on the hand along the pads' closing axis at the grasp pose for 0.3 s, realistic gains: held
+    stiffly (integral action), the tcp ends where it was (within 0.2 mm); complying along the push, it moves
+    with it (centimetres at the damping's pace), while across the push it stays within 0.5 mm (the
+    reference's first-order step, J^-1 at each tick's pose) and its orientation within 1 mrad."""
+    q = configs.grasp.q
+    hand = mujoco.mj_name2id(robot.mj, mujoco.mjtObj.mjOBJ_BODY, "gripper_base")
+    tcp = robot.handles.tcp_site
+    results = {}
+    for name, comply in (("stiff", None), ("comply", True)):
+        d = _data_at(robot, q)
+        mujoco.mj_forward(robot.mj, d)
+        axis = d.site_xmat[tcp].reshape(3, 3)[:, 1].copy()  # the pads' closing axis
+        p0, R0 = d.site_xpos[tcp].copy(), d.site_xmat[tcp].reshape(3, 3).copy()
+        d.xfrc_applied[hand, :3] = 20.0 * axis
+        rec = control.hold(robot, d, q, 0.3, ControlConfig.realistic(), comply_along=axis if comply else None)
+        dp = d.site_xpos[tcp] - p0
+        turn = float(np.linalg.norm(pin.log3(R0.T @ d.site_xmat[tcp].reshape(3, 3))))
+        results[name] = (float(dp @ axis), float(np.linalg.norm(dp - (dp @ axis) * axis)), turn, rec.max_error_rad)
+        print(f"{name}: along {dp @ axis * 1e3:.3f} mm, across {results[name][1] * 1e3:.3f} mm, turn "
+              f"{turn * 1e3:.2f} mrad, joint error max {rec.max_error_rad * 1e3:.2f} mrad")
+    along_stiff, across_stiff, turn_stiff, _ = results["stiff"]
+    along, across, turn, _ = results["comply"]
+    assert abs(along_stiff) < 2e-4 and across_stiff < 2e-4 and turn_stiff < 1e-3
+    assert along > 5e-3  # it yields
+    assert across < 5e-4 and turn < 1e-3  # and only along the axis
+
+
+def test_comply_along_must_be_a_direction(robot: Robot) -> None:
+    d = _data_at(robot, robot.home_q)
+    with pytest.raises(ConfigError, match="hold.comply_along"):
+        control.hold(robot, d, robot.home_q, 0.01, ControlConfig(), comply_along=np.zeros(3))
