@@ -391,5 +391,5 @@ def test_a_hold_that_complies_along_an_axis_yields_there_and_stays_stiff_across(
 
 def test_comply_along_must_be_a_direction(robot: Robot) -> None:
     d = _data_at(robot, robot.home_q)
-    with pytest.raises(ConfigError, match="hold.comply_along"):
+    with pytest.raises(ConfigError, match=r"hold\.comply_along"):
         control.hold(robot, d, robot.home_q, 0.01, ControlConfig(), comply_along=np.zeros(3))

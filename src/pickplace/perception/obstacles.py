@@ -98,7 +98,9 @@ class ObstacleCamera:
         self._body = CollisionChecker(robot, CollisionPolicy(margin_m=OWN_BODY_MARGIN_M))
         self._probe = robot.make_data()
         names = [f"{SEEN_OBSTACLE}{i:02d}" for i in range(SEEN_COLUMNS)]
-        self._mocap = robot.mj.body_mocapid[[mujoco.mj_name2id(robot.mj, mujoco.mjtObj.mjOBJ_BODY, n) for n in names]]
+        #: The columns' mocap ids in a world state of the robot's model (:meth:`place`).
+        self.mocap_ids = robot.mj.body_mocapid[[mujoco.mj_name2id(robot.mj, mujoco.mjtObj.mjOBJ_BODY, n)
+                                                for n in names]]
         self._index = {n: i for i, n in enumerate(names)}
 
     def close(self) -> None:
@@ -148,7 +150,7 @@ class ObstacleCamera:
         if not len(cols):
             return cols
         h = self.view.robot.handles
-        place_columns(self._probe, self._mocap, cols)
+        self.place(self._probe, cols)
         self._body.set_world(self._probe)
         finger_m = float(np.clip(gripper.finger_travel(self.view.robot, d), 0.0, 0.040))
         self._body.set_held(pin.SE3.Identity(), finger_m=finger_m)  # (the pose: no object is held in this check)
@@ -160,15 +162,15 @@ class ObstacleCamera:
         return cols
 
 
-def place_columns(d: mujoco.MjData, mocap_ids: np.ndarray, columns: np.ndarray) -> None:
-    """Put the seen-obstacle mocap bodies ``mocap_ids`` of a (believed) world ``d`` on the occupied cells
-    ``columns`` (k, 3) (:func:`height_map`), each column's top at its cell's highest point; park the rest."""
-    n = len(columns)
-    d.mocap_pos[mocap_ids] = SEEN_PARKED_POS
-    d.mocap_quat[mocap_ids] = (1.0, 0.0, 0.0, 0.0)
-    if n:
-        d.mocap_pos[mocap_ids[:n], :2] = columns[:, :2]
-        d.mocap_pos[mocap_ids[:n], 2] = columns[:, 2] - SEEN_HALF_HEIGHT_M
+    def place(self, d: mujoco.MjData, columns: np.ndarray) -> None:
+        """Put the seen-obstacle columns of a (believed) world state ``d`` on the occupied cells ``columns``
+        (k, 3) (:meth:`columns`), each column's top at its cell's highest point; park the rest."""
+        ids, n = self.mocap_ids, len(columns)
+        d.mocap_pos[ids] = SEEN_PARKED_POS
+        d.mocap_quat[ids] = (1.0, 0.0, 0.0, 0.0)
+        if n:
+            d.mocap_pos[ids[:n], :2] = columns[:, :2]
+            d.mocap_pos[ids[:n], 2] = columns[:, 2] - SEEN_HALF_HEIGHT_M
 
 
-__all__ = ["MIN_CELL_POINTS", "OBSTACLE_IMAGE_PX", "ObstacleCamera", "height_map", "place_columns"]
+__all__ = ["MIN_CELL_POINTS", "OBSTACLE_IMAGE_PX", "ObstacleCamera", "height_map"]

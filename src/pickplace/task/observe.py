@@ -22,10 +22,10 @@ import numpy as np
 import pinocchio as pin
 
 from pickplace.perception.camera import CameraConfig
-from pickplace.perception.obstacles import ObstacleCamera, place_columns
+from pickplace.perception.obstacles import ObstacleCamera
 from pickplace.perception.pose import ObjectNotSeen
 from pickplace.robot import gripper
-from pickplace.robot.model import SEEN_COLUMNS, SEEN_OBSTACLE, Robot
+from pickplace.robot.model import Robot
 from pickplace.world.config import check_int, check_range
 from pickplace.world.contact import Contact
 
@@ -338,9 +338,6 @@ class SensorObserver:
         self.obstacles = ObstacleCamera(self.camera, rng.spawn(1)[0])
         self._world = mujoco.MjData(robot.mj)  # the believed world (:meth:`world`)
         mujoco.mj_resetDataKeyframe(robot.mj, self._world, 0)
-        seen = [mujoco.mj_name2id(robot.mj, mujoco.mjtObj.mjOBJ_BODY, f"{SEEN_OBSTACLE}{i:02d}")
-                for i in range(SEEN_COLUMNS)]
-        self._seen_mocap = robot.mj.body_mocapid[seen]
         self._obstacles_at = -math.inf  # when the camera last looked for obstacles (s)
         m, h = robot.mj, robot.handles
         self._tcp = h.tcp_site
@@ -625,7 +622,7 @@ class SensorObserver:
         if t - self._obstacles_at >= self.sensing.obstacle_period_s:
             self._obstacles_at = t
             columns = self.obstacles.columns(self.d, [self.camera.object_sphere(T)])
-            place_columns(w, self._seen_mocap, columns)
+            self.obstacles.place(w, columns)
             log.debug("t = %.3f s: the camera sees %d cells of unknown obstacles%s", t, len(columns),
                       f", up to {columns[0, 2]:.3f} m" if len(columns) else "")
         return w
