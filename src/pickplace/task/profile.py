@@ -7,13 +7,16 @@
 * ``realistic``: the robot knows the object only through its sensors
   (:class:`~pickplace.task.observe.SensorObserver`): a fixed depth camera with the noise and the calibration
   error of an Intel RealSense D435 (:class:`~pickplace.perception.camera.CameraConfig`), the gripper's own
-  force and finger travel, a wrist force/torque sensor (:class:`~pickplace.task.observe.SensingConfig`). Its
+  force and finger travel, a wrist force/torque sensor (:class:`~pickplace.task.observe.SensingConfig`); its
+  planners check against the world it believes in (``Observer.world``: its map, the object where the camera
+  saw it, and the obstacles the camera sees, :mod:`pickplace.perception.obstacles`). Its
   controllers run at the e-Series' 500 Hz with one period of latency on quantized, noisy encoders
   (:class:`~pickplace.motion.loop.LoopConfig`), with a dynamics model whose links' masses, centres of mass and
   inertias are off by up to 10 % and an arm whose joints have friction the controller does not know
   (:class:`~pickplace.robot.model_error.ModelErrorConfig`), and gains for that
   (:meth:`~pickplace.motion.control.ControlConfig.realistic`, the ``[control]`` table's defaults in this
-  profile); the gripper closes at a Robotiq 2F-85's speed (:class:`~pickplace.robot.gripper.GripperConfig`).
+  profile, which also yield along the pads' closing axis while the gripper closes); the gripper closes at a
+  Robotiq 2F-85's speed (:class:`~pickplace.robot.gripper.GripperConfig`).
   Every default names its source in its class.
 
 In a TOML config::
