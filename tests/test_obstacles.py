@@ -23,8 +23,11 @@ from pickplace.robot.model import (
     SEEN_HALF_HEIGHT_M,
     SEEN_PARKED_POS,
     Robot,
+    build,
 )
 from pickplace.task.observe import SensingConfig, SensorObserver, SimulatorObserver
+from pickplace.world.config import SceneConfig
+from pickplace.world.objects import library_object
 
 
 def test_height_map_bins_points_into_cells_with_their_highest_point() -> None:
@@ -142,3 +145,29 @@ def test_the_believed_world_has_the_object_where_it_was_seen_and_the_wall_only_a
         assert any(name.startswith("seen_obstacle") for pair in checker.colliding_pairs(q) for name in pair)
     finally:
         obs.close()
+
+
+@pytest.mark.parametrize("name", ["l_bracket", "mug", "gelatin_box"])
+def test_the_objects_sphere_holds_it_whatever_its_believed_yaw(name: str) -> None:
+    """The sphere the obstacle images leave out covers every point of the object for any yaw error about its
+    believed origin (resting), and for any grasp point inside it (held: around the tcp)."""
+    obj = library_object(name)
+    robot = build(SceneConfig(object=obj))
+    view = TableCamera(robot, CameraConfig(), np.random.default_rng(0))
+    try:
+        verts = obj.geometry().vertices
+        believed = pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, 0.4), np.array([0.4, 0.1, 0.35]))
+        for yaw in np.linspace(0.0, 2 * math.pi, 13):
+            true = pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, 0.4 + yaw), believed.translation)
+            centre, radius = view.object_sphere(believed)
+            assert np.all(np.linalg.norm((verts @ true.rotation.T + true.translation) - centre, axis=1) < radius)
+        rng = np.random.default_rng(1)
+        for grasp in verts[rng.choice(len(verts), 10)]:  # the pads at a point of the object
+            tcp = believed.act(grasp)
+            centre, radius = view.object_sphere(believed, held_at=tcp)
+            for yaw in np.linspace(0.0, 2 * math.pi, 7):  # the object turned about the grasp point
+                R = pin.rpy.rpyToMatrix(0.0, 0.0, yaw) @ believed.rotation
+                pts = (verts - grasp) @ R.T + tcp
+                assert np.all(np.linalg.norm(pts - centre, axis=1) < radius)
+    finally:
+        view.close()

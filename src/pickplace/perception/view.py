@@ -157,6 +157,7 @@ class TableCamera:
         lo, hi = geo.vertices.min(axis=0), geo.vertices.max(axis=0)
         self._centre_local = (lo + hi) / 2
         self._radius_m = float(np.linalg.norm(hi - lo)) / 2 + SEARCH_MARGIN_M
+        self._reach_m = float(np.max(np.linalg.norm(geo.vertices, axis=1)))  # its farthest point from its origin
         self.images = 0
         self.wall_s = 0.0
 
@@ -194,10 +195,15 @@ class TableCamera:
         window[max(0, int(v - r)):max(0, int(v + r) + 1), max(0, int(u - r)):max(0, int(u + r) + 1)] = True
         return window
 
-    def object_sphere(self, T_world_object: pin.SE3) -> tuple[np.ndarray, float]:
-        """The sphere (centre (3,) (m), radius (m)) the object at this pose is looked for in: its bounding
-        sphere widened by :data:`SEARCH_MARGIN_M`."""
-        return T_world_object.act(self._centre_local), self._radius_m
+    def object_sphere(self, T_world_object: pin.SE3, held_at: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+        """Where the object may be (centre (3,) (m), radius (m)), widened by :data:`SEARCH_MARGIN_M`, whatever
+        its believed yaw's error: resting, around its believed origin out to its farthest point (a turn about
+        the origin stays inside); held at the point ``held_at`` (3,) (the tcp; the pads hold the object there),
+        out to twice that (a grasp whose belief is turned, say half a turn off, still holds the object around
+        the pads)."""
+        if held_at is not None:
+            return np.asarray(held_at, dtype=float).copy(), 2 * self._reach_m + SEARCH_MARGIN_M
+        return T_world_object.translation.copy(), self._reach_m + SEARCH_MARGIN_M
 
     def _near(self, points: np.ndarray, T_world_object: pin.SE3) -> np.ndarray:
         centre = T_world_object.act(self._centre_local)

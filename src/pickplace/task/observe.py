@@ -613,7 +613,8 @@ class SensorObserver:
         """The believed world: the robot's map (the model's static geometry; the fault intruder parked, as
         the map has it), the object at :meth:`object_pose`, and the unknown obstacles the camera saw at its
         latest look (:class:`~pickplace.perception.obstacles.ObstacleCamera`, a new look when the last is
-        ``obstacle_period_s`` old; the object's surroundings left out, where the robot believes it is)."""
+        ``obstacle_period_s`` old; left out: wherever the object may be, whatever the error of its believed
+        yaw, :meth:`TableCamera.object_sphere`)."""
         w, T = self._world, self.object_pose()
         a = self.robot.handles.object_qpos
         w.qpos[a:a + 3] = T.translation
@@ -621,7 +622,8 @@ class SensorObserver:
         t = float(self.d.time)
         if t - self._obstacles_at >= self.sensing.obstacle_period_s:
             self._obstacles_at = t
-            columns = self.obstacles.columns(self.d, [self.camera.object_sphere(T)])
+            held_at = self.d.site_xpos[self._tcp] if self._T_tcp_object is not None else None
+            columns = self.obstacles.columns(self.d, [self.camera.object_sphere(T, held_at)])
             self.obstacles.place(w, columns)
             log.debug("t = %.3f s: the camera sees %d cells of unknown obstacles%s", t, len(columns),
                       f", up to {columns[0, 2]:.3f} m" if len(columns) else "")
