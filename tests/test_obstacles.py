@@ -116,6 +116,9 @@ def test_the_believed_world_has_the_object_where_it_was_seen_and_the_wall_only_a
         assert w is not d
         a = robot.handles.object_qpos
         np.testing.assert_array_equal(w.qpos[a:a + 3], seen.translation)
+        R = np.empty(9)
+        mujoco.mju_quat2Mat(R, w.qpos[a + 3:a + 7])
+        np.testing.assert_allclose(R.reshape(3, 3), seen.rotation, rtol=0, atol=1e-12)
         truth = d.qpos[a:a + 3]
         assert 0.0 < np.linalg.norm(w.qpos[a:a + 3] - truth) < 0.015  # the estimate's error, a few mm
         mocap = robot.mj.body_mocapid[mujoco.mj_name2id(robot.mj, mujoco.mjtObj.mjOBJ_BODY, INTRUDER)]
