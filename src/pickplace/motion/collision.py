@@ -26,8 +26,7 @@ import pinocchio as pin
 
 from pickplace.errors import CollisionError
 from pickplace.robot.model import (
-    SEEN_COLUMNS,
-    SEEN_OBSTACLE,
+    SEEN_OBSTACLE_NAMES,
     Handles,
     Robot,
     add_object_geoms,
@@ -251,8 +250,8 @@ def _checker_model(scene: SceneConfig) -> mujoco.MjModel:
     works on its own deep copy (it edits the collision bits, the margins and the held object's pose).
     """
     spec = scene_spec(scene)
-    for i in range(SEEN_COLUMNS):  # the obstacles the robot has seen take part here (as the map's do)
-        column = spec.geom(f"{SEEN_OBSTACLE}{i:02d}")
+    for name in SEEN_OBSTACLE_NAMES:  # the obstacles the robot has seen take part here (as the map's do)
+        column = spec.geom(name)
         column.contype, column.conaffinity = 1, 1
     tcp_body = spec.site("tcp").parent
     held = tcp_body.add_body(name=HELD_PREFIX + "object")

@@ -33,7 +33,13 @@ from scipy import ndimage
 from pickplace.motion.collision import CollisionChecker, CollisionPolicy
 from pickplace.perception.camera import DepthCamera, point_cloud, sensor_depth
 from pickplace.robot import gripper
-from pickplace.robot.model import SEEN_CELL_M, SEEN_COLUMNS, SEEN_HALF_HEIGHT_M, SEEN_OBSTACLE, SEEN_PARKED_POS
+from pickplace.robot.model import (
+    SEEN_CELL_M,
+    SEEN_COLUMNS,
+    SEEN_HALF_HEIGHT_M,
+    SEEN_OBSTACLE_NAMES,
+    SEEN_PARKED_POS,
+)
 
 if TYPE_CHECKING:
     from pickplace.perception.view import TableCamera
@@ -97,11 +103,10 @@ class ObstacleCamera:
         robot = view.robot
         self._body = CollisionChecker(robot, CollisionPolicy(margin_m=OWN_BODY_MARGIN_M))
         self._probe = robot.make_data()
-        names = [f"{SEEN_OBSTACLE}{i:02d}" for i in range(SEEN_COLUMNS)]
         #: The columns' mocap ids in a world state of the robot's model (:meth:`place`).
         self.mocap_ids = robot.mj.body_mocapid[[mujoco.mj_name2id(robot.mj, mujoco.mjtObj.mjOBJ_BODY, n)
-                                                for n in names]]
-        self._index = {n: i for i, n in enumerate(names)}
+                                                for n in SEEN_OBSTACLE_NAMES]]
+        self._index = {n: i for i, n in enumerate(SEEN_OBSTACLE_NAMES)}
 
     def close(self) -> None:
         """Release the OpenGL context."""

@@ -92,6 +92,8 @@ INTRUDER_HALF_SIZE_M = (0.02, 0.10, 0.125)
 SEEN_OBSTACLE = "seen_obstacle"
 #: How many such columns the believed world holds.
 SEEN_COLUMNS = 64
+#: Their names (of each mocap body and of its one geom).
+SEEN_OBSTACLE_NAMES = tuple(f"{SEEN_OBSTACLE}{i:02d}" for i in range(SEEN_COLUMNS))
 #: Side of a column's square cross-section (m): the height map's cell.
 SEEN_CELL_M = 0.04
 #: Half height of a column (m): from its top (the highest point seen in its cell) down past the table top.
@@ -150,9 +152,9 @@ def scene_spec(scene: SceneConfig) -> mujoco.MjSpec:
     intruder.add_geom(name=INTRUDER, type=mujoco.mjtGeom.mjGEOM_BOX, size=list(INTRUDER_HALF_SIZE_M),
                       material="obstacle")
     # Obstacles the robot has seen (the believed world's): parked, collision-free and hidden in the simulation.
-    for i in range(SEEN_COLUMNS):
-        column = spec.worldbody.add_body(name=f"{SEEN_OBSTACLE}{i:02d}", pos=list(SEEN_PARKED_POS), mocap=True)
-        column.add_geom(name=f"{SEEN_OBSTACLE}{i:02d}", type=mujoco.mjtGeom.mjGEOM_BOX,
+    for name in SEEN_OBSTACLE_NAMES:
+        column = spec.worldbody.add_body(name=name, pos=list(SEEN_PARKED_POS), mocap=True)
+        column.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX,
                         size=[SEEN_CELL_M / 2, SEEN_CELL_M / 2, SEEN_HALF_HEIGHT_M], contype=0, conaffinity=0,
                         group=5, rgba=[1.0, 0.5, 0.0, 0.4])
 
