@@ -29,6 +29,7 @@ if TYPE_CHECKING:
     from pickplace.robot.model import Robot
     from pickplace.task.episode import EpisodeConfig, EpisodeResult
     from pickplace.task.faults import FaultConfig
+    from pickplace.task.task_episode import TaskResult
     from pickplace.task.telemetry import Telemetry
 
 EXIT_FAILURE = 1
@@ -327,11 +328,120 @@ def print_episode(result: EpisodeResult, console: Console) -> None:
         console.print(f"recovery: {escape(line)}", highlight=False)
 
 
+def add_task_options(p: argparse.ArgumentParser) -> None:
+    """The task options of ``run`` (several objects)."""
+    p.add_argument("--task", choices=("place", "stack", "clear"),
+                   help="a task with several objects: each to its goal, a tower, or everything into the bin")
+    p.add_argument("--objects", type=int, metavar="N",
+                   help="with --task: N objects drawn at random from the library (default 3, or the config's "
+                        "[[objects]]); drawn from the seed")
+    p.add_argument("--order", choices=("planned", "listed"),
+                   help="with --task: the task planner's order (default) or the objects' listed order")
+
+
+def task_config_from_args(args: argparse.Namespace, config: EpisodeConfig) -> EpisodeConfig:
+    """The config of ``run --task``: the config's [task] and [[objects]], or random objects, with the flags on top."""
+    import numpy as np
+
+    from pickplace.task.tasks import TaskConfig, random_task_scene
+
+    task = config.task if config.task is not None else TaskConfig(kind=args.task)
+    changes: dict[str, object] = {}
+    if args.task is not None:
+        changes["kind"] = args.task
+    if args.order is not None:
+        changes["order"] = args.order
+    task = dataclasses.replace(task, **changes)
+    scene = config.scene
+    if args.objects is not None or not scene.others:
+        n = args.objects if args.objects is not None else 3
+        scene = random_task_scene(task.kind, n, np.random.default_rng([args.seed, 7]), base=scene)
+    elif task.kind == "clear" and scene.bin is None:
+        from pickplace.world.config import BinConfig
+
+        scene = dataclasses.replace(scene, bin=BinConfig())
+    return dataclasses.replace(config, scene=scene, task=task)
+
+
+def print_task(result: TaskResult, console: Console) -> None:
+    """The picks and the objects of one task."""
+    t = Table(title=f"{result.kind} task, {result.order_policy} order (seed {result.seed})",
+              caption="Ideal robot. Times are simulated: each pick and place from its IDLE to the end of the "
+                      "settling after its release (1 s after it by default), the return home included.")
+    for col in ("#", "object", "to", "start (s)", "time (s)", "place error", "outcome"):
+        t.add_column(col, justify="right" if col in ("#", "start (s)", "time (s)", "place error") else "left")
+    rows = zip(result.order, result.picks, result.pick_spans_s, strict=True)
+    for i, ((name, label), pick, (start, span)) in enumerate(rows, start=1):
+        outcome = "[green]ok[/]" if pick.success else f"[red]{pick.failure_phase}[/]"
+        if pick.retries:
+            outcome += f" ({pick.retries} recover{'y' if pick.retries == 1 else 'ies'})"
+        t.add_row(str(i), name, label, f"{start:.2f}", f"{span:.2f}", _mm(pick.place_error_xy_m), outcome)
+    console.print(t)
+    t = Table(title="Objects at the end (1 s after the last release, the simulator's truth)")
+    for col in ("object", "xy error", "yaw error", "z error", ""):
+        t.add_column(col, justify="left" if col in ("object", "") else "right")
+    for o in result.objects:
+        yaw = "—" if o.yaw_error_rad != o.yaw_error_rad else f"{math.degrees(o.yaw_error_rad):.2f}°"
+        t.add_row(o.name, _mm(o.xy_error_m), yaw, _mm(o.z_error_m), "[green]ok[/]" if o.ok else f"[red]{o.note}[/]")
+    console.print(t)
+    console.print(f"task time {result.total_time_s:.2f} s simulated ({result.time_per_pick_s:.2f} s per object), "
+                  f"wall {result.wall_time_s:.2f} s ({result.real_time_factor:.1f}× real time)", highlight=False)
+    for line in result.skipped:
+        console.print(f"put back: {escape(line)}", highlight=False)
+    for k in result.knocked:
+        console.print(f"knocked: the {k.name} moved {k.shift_m * 1e3:.1f} mm while the {k.by} was handled"
+                      f"{' (placed again)' if k.repaired else ''}", highlight=False)
+
+
+def _cmd_task(args: argparse.Namespace, console: Console, config: EpisodeConfig) -> int:
+    from pickplace.task.task_episode import run_task
+
+    config = task_config_from_args(args, config)
+    if args.viewer and not _has_display():
+        raise CliError("--viewer needs a display (none found: DISPLAY and WAYLAND_DISPLAY are unset); "
+                       "use --video PATH.mp4 to render offscreen instead")
+    result = run_task(config, args.seed, record=bool(args.video or args.plots or args.viewer))
+    if args.json:
+        print(json.dumps(result.to_dict(), indent=2))
+    else:
+        print_task(result, console)
+    _write_media(args, config, result.telemetry, console)
+    if not result.success:
+        Console(stderr=True, soft_wrap=True).print(
+            f"[bold red]error:[/] {result.failure_kind}: task failed: {escape(result.failure_reason or '')}",
+            highlight=False)
+        return EXIT_FAILURE
+    return 0
+
+
+def _write_media(args: argparse.Namespace, config: EpisodeConfig, telemetry: Telemetry | None,
+                 console: Console) -> None:
+    """The plots, the video and the viewer's replay of a recorded episode or task."""
+    if telemetry is None:
+        return
+    from pickplace.eval import report
+    from pickplace.robot import model
+
+    written = report.save_plots(telemetry, Path(args.plots)) if args.plots else []
+    robot = model.build(config.scene) if args.video or args.viewer else None  # the scene the frames show
+    if args.video:
+        written.append(report.render_video(robot, telemetry, Path(args.video)))
+    if not args.json:
+        for path in written:
+            console.print(f"wrote {path}", highlight=False)
+    if args.viewer:
+        _replay_in_viewer(robot, telemetry)
+
+
 def _cmd_run(args: argparse.Namespace, console: Console) -> int:
     from pickplace.task.episode import run_episode
     from pickplace.task.machine import Phase
 
     config = episode_config_from_args(args)
+    if args.task is not None or config.task is not None:
+        return _cmd_task(args, console, config)
+    if args.objects is not None or args.order is not None:
+        raise CliError("--objects and --order go with --task place|stack|clear")
     wants_media = bool(args.video or args.plots or args.viewer)
     if args.viewer and not _has_display():
         raise CliError("--viewer needs a display (none found: DISPLAY and WAYLAND_DISPLAY are unset); "
@@ -342,19 +452,7 @@ def _cmd_run(args: argparse.Namespace, console: Console) -> int:
         print(json.dumps(result.to_dict(), indent=2))
     elif moved:
         print_episode(result, console)
-    if result.telemetry is not None:
-        from pickplace.eval import report
-        from pickplace.robot import model
-
-        written = report.save_plots(result.telemetry, Path(args.plots)) if args.plots else []
-        robot = model.build(config.scene) if args.video or args.viewer else None  # the scene the frames show
-        if args.video:
-            written.append(report.render_video(robot, result.telemetry, Path(args.video)))
-        if not args.json:
-            for path in written:
-                console.print(f"wrote {path}", highlight=False)
-        if args.viewer:
-            _replay_in_viewer(robot, result.telemetry)
+    _write_media(args, config, result.telemetry, console)
     if not result.success:
         err = Console(stderr=True, soft_wrap=True)
         where = f"episode failed in {result.failure_phase}" if moved else "nothing moved"
@@ -439,13 +537,15 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-v", "--verbose", action="count", default=0, help="log more (-v info, -vv debug)")
     sub = parser.add_subparsers(dest="command", required=True)
 
-    p = sub.add_parser("run", help="one pick and place in simulation, with its timeline and measured results")
+    p = sub.add_parser("run", help="one pick and place in simulation, with its timeline and measured results; or a "
+                                   "task with several objects (--task)")
     add_episode_options(p)
     p.add_argument("--seed", type=int, default=0, help="episode seed (the planner's random stream); default 0")
     p.add_argument("--json", action="store_true", help="print the EpisodeResult as one JSON object")
     p.add_argument("--viewer", action="store_true", help="replay the episode in MuJoCo's viewer (needs a display)")
     p.add_argument("--video", metavar="PATH.mp4", help="render the episode offscreen to a video (MUJOCO_GL=egl)")
     p.add_argument("--plots", metavar="DIR", help="write joint tracking, tcp height, grip force and timeline PNGs")
+    add_task_options(p)
     p.set_defaults(func=_cmd_run)
 
     p = sub.add_parser("inspect", help="model summary, gripper geometry, IK of the targets, hold test")
@@ -458,7 +558,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("bench", help="benchmarks: planning (vs OMPL), control (vs bare mj_step), campaign (scaling), "
                                      "perception (camera pose error), sensing (success and place error vs camera "
                                      "noise and calibration)")
-    p.add_argument("name", choices=["planning", "control", "campaign", "perception", "sensing"],
+    p.add_argument("name", choices=["planning", "control", "campaign", "perception", "sensing", "tasks"],
                    help="which benchmark")
     p.add_argument("bench_args", nargs=argparse.REMAINDER,
                    help="options of the benchmark (e.g. --json; planning: --quick, --queries N, --budget S, "

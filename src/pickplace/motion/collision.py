@@ -26,14 +26,17 @@ import pinocchio as pin
 
 from pickplace.errors import CollisionError
 from pickplace.robot.model import (
+    BIN_FLOOR,
     SEEN_OBSTACLE_NAMES,
     Handles,
     Robot,
     add_object_geoms,
+    object_body_name,
     quiet_attach,
     scene_spec,
 )
 from pickplace.world.config import SceneConfig, check_range
+from pickplace.world.objects import ObjectConfig
 
 log = logging.getLogger(__name__)
 
@@ -92,9 +95,9 @@ class CollisionChecker:
     ) -> None:
         self.robot = robot
         self.policy = policy or CollisionPolicy()
-        self._m = copy.deepcopy(_checker_model(robot.scene))
+        self._m = copy.deepcopy(_checker_model(robot.world_scene, robot.scene.object))
         self._d = mujoco.MjData(self._m)
-        h = self._handles = Handles.resolve(self._m)
+        h = self._handles = Handles.resolve(self._m, robot.mj.body(robot.handles.object_body).name)
         self._held_body = mujoco.mj_name2id(self._m, mujoco.mjtObj.mjOBJ_BODY, HELD_PREFIX + "object")
         self._held_geoms = frozenset(int(g) for g in np.flatnonzero(self._m.geom_bodyid == self._held_body))
         self._arm = slice(int(h.arm_qpos[0]), int(h.arm_qpos[0]) + 6)
@@ -154,6 +157,15 @@ class CollisionChecker:
         cls[np.isin(m.geom_bodyid, list(h.robot_bodies))] = ARM
         cls[np.isin(m.geom_bodyid, list(h.gripper_bodies))] = GRIP
         cls[m.geom_bodyid == table] = TABLE
+        # Surfaces objects are set down on count as the table: the bin's floor, and the object the one in hand is
+        # set on (a tower's top). The other objects, the bin's walls and the obstacles are the environment.
+        surfaces = [BIN_FLOOR] if self.robot.world_scene.bin is not None else []
+        if self.robot.scene.goal_support:
+            support = object_body_name(self.robot.world_scene, self.robot.scene.goal_support)
+            surfaces += [m.geom(int(g)).name for g in np.flatnonzero(
+                m.geom_bodyid == mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, support))]
+        for name in surfaces:
+            cls[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, name)] = TABLE
         # Exactly one of the two objects takes part: the one resting in the world, or the one in the gripper.
         cls[m.geom_bodyid == h.object_body] = OFF if policy.object_held else OBJ
         cls[m.geom_bodyid == self._held_body] = OBJ if policy.object_held else OFF
@@ -242,8 +254,9 @@ HELD_PREFIX = "held_"
 
 
 @functools.lru_cache(maxsize=16)
-def _checker_model(scene: SceneConfig) -> mujoco.MjModel:
-    """The scene compiled with a copy of the object welded to the tcp's body (compiled once per scene).
+def _checker_model(scene: SceneConfig, held: ObjectConfig) -> mujoco.MjModel:
+    """The scene compiled with a copy of the object ``held`` welded to the tcp's body (compiled once per scene and
+    object).
 
     The seen-obstacle columns collide here (in the simulation they do not exist). Nothing else changes: the
     qpos and mocap layouts are the simulation's, so world states carry over. Each checker
@@ -254,7 +267,7 @@ def _checker_model(scene: SceneConfig) -> mujoco.MjModel:
         column = spec.geom(name)
         column.contype, column.conaffinity = 1, 1
     tcp_body = spec.site("tcp").parent
-    held = tcp_body.add_body(name=HELD_PREFIX + "object")
-    add_object_geoms(spec, held, scene.object, contact=False, prefix=HELD_PREFIX)
+    body = tcp_body.add_body(name=HELD_PREFIX + "object")
+    add_object_geoms(spec, body, held, contact=False, prefix=HELD_PREFIX)
     with quiet_attach():
         return spec.compile()

@@ -9,6 +9,7 @@ second robot description to drift apart (``tests/test_model.py`` checks the two 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import logging
 import math
@@ -138,14 +139,19 @@ def scene_spec(scene: SceneConfig) -> mujoco.MjSpec:
     body.add_site(name=f"{OBJECT}_origin", size=[0.003, 0, 0], rgba=[1, 0, 1, 1], group=4)
 
     # The goal: a translucent marker (no contacts) with the object's footprint (its bounds) at the goal yaw.
-    lo, hi = obj.geometry().bounds_m
-    goal = spec.worldbody.add_body(name="goal", pos=[*scene.goal_xy_m, scene.table_height_m],
-                                   quat=_quat_yaw(scene.goal_yaw_rad))
-    goal.add_geom(name="goal_marker", type=mujoco.mjtGeom.mjGEOM_BOX,
-                  size=[(hi[0] - lo[0]) / 2, (hi[1] - lo[1]) / 2, 0.0005],
-                  pos=[(hi[0] + lo[0]) / 2, (hi[1] + lo[1]) / 2, 0.0], contype=0, conaffinity=0, group=1,
-                  material="goal")
-    goal.add_site(name="goal", size=[0.003, 0, 0], rgba=[0, 1, 0, 1], group=4)
+    _add_goal_marker(spec, "goal", obj, scene.goal_xy_m, scene.goal_yaw_rad, scene.goal_surface_m)
+
+    # More objects (a task's): free bodies named after them, each with its goal's marker if it has one.
+    for other in scene.others:
+        b = spec.worldbody.add_body(name=other.name, quat=_quat_yaw(other.start_yaw_rad),
+                                    pos=[*other.start_xy_m, scene.table_height_m - other.object.geometry().z_min_m])
+        b.add_freejoint(name=f"{other.name}_joint")
+        add_object_geoms(spec, b, other.object, contact=True)
+        if other.goal_xy_m is not None:
+            _add_goal_marker(spec, f"goal_{other.name}", other.object, other.goal_xy_m, other.goal_yaw_rad,
+                             scene.table_height_m)
+    if scene.bin is not None:
+        _add_bin(spec, scene)
 
     # An obstacle parked far away (a mocap body): fault injection moves it into the robot's path mid-episode.
     intruder = spec.worldbody.add_body(name=INTRUDER, pos=list(INTRUDER_PARKED_POS), mocap=True)
@@ -170,6 +176,46 @@ def scene_spec(scene: SceneConfig) -> mujoco.MjSpec:
 
 #: Name of the object's body (its geoms are named after the object, see :func:`object_geom_names`).
 OBJECT = "object"
+#: Name of the bin's body; its floor geom is :data:`BIN_FLOOR` (a surface, like the table), its walls ``bin_wall_*``.
+BIN = "bin"
+BIN_FLOOR = "bin_floor"
+
+
+def object_body_name(scene: SceneConfig, name: str) -> str:
+    """The body of the scene's object called ``name``: :data:`OBJECT` for the scene's own (first) object, its name
+    for the others. Raises :class:`ModelError` listing the names if there is none."""
+    names = [o.name for o in scene.objects]
+    if name not in names:
+        raise ModelError(f"the scene has no object named '{name}'; it has {', '.join(names)}")
+    return OBJECT if name == scene.object.name else name
+
+
+def _add_goal_marker(spec: mujoco.MjSpec, name: str, obj: ObjectConfig, xy: tuple[float, float], yaw: float,
+                     z: float) -> None:
+    """A translucent marker of the object's footprint (its bounds) at a goal, without contacts, and a site."""
+    lo, hi = obj.geometry().bounds_m
+    goal = spec.worldbody.add_body(name=name, pos=[*xy, z], quat=_quat_yaw(yaw))
+    goal.add_geom(name=f"{name}_marker", type=mujoco.mjtGeom.mjGEOM_BOX,
+                  size=[(hi[0] - lo[0]) / 2, (hi[1] - lo[1]) / 2, 0.0005],
+                  pos=[(hi[0] + lo[0]) / 2, (hi[1] + lo[1]) / 2, 0.0], contype=0, conaffinity=0, group=1,
+                  material="goal")
+    goal.add_site(name=name, size=[0.003, 0, 0], rgba=[0, 1, 0, 1], group=4)
+
+
+def _add_bin(spec: mujoco.MjSpec, scene: SceneConfig) -> None:
+    """The bin: a floor and four walls, fixed to the table."""
+    b = scene.bin
+    assert b is not None
+    t, h, f = b.wall_thickness_m, b.wall_height_m, b.floor_thickness_m
+    ix, iy = (s / 2 for s in b.inner_size_xy_m)
+    body = spec.worldbody.add_body(name=BIN, pos=[*b.xy_m, scene.table_height_m])
+    body.add_geom(name=BIN_FLOOR, type=mujoco.mjtGeom.mjGEOM_BOX, size=[ix, iy, f / 2], pos=[0, 0, f / 2],
+                  material="obstacle", friction=[1.0, 0.005, 0.0001])
+    walls = (("x+", [ix + t / 2, 0], [t / 2, iy + t]), ("x-", [-ix - t / 2, 0], [t / 2, iy + t]),
+             ("y+", [0, iy + t / 2], [ix, t / 2]), ("y-", [0, -iy - t / 2], [ix, t / 2]))
+    for name, (x, y), (sx, sy) in walls:
+        body.add_geom(name=f"bin_wall_{name}", type=mujoco.mjtGeom.mjGEOM_BOX, size=[sx, sy, h / 2],
+                      pos=[x, y, h / 2], material="obstacle")
 
 
 def object_geom_names(obj: ObjectConfig) -> list[str]:
@@ -289,8 +335,13 @@ class Handles:
         return frozenset(int(g) for g in self.object_geoms)
 
     @classmethod
-    def resolve(cls, m: mujoco.MjModel) -> Handles:
-        """Look every name up in ``m``; raise :class:`ModelError` listing valid names if one is missing."""
+    def resolve(cls, m: mujoco.MjModel, object_body: str = OBJECT) -> Handles:
+        """Look every name up in ``m``; raise :class:`ModelError` listing valid names if one is missing.
+
+        Args:
+            m: The compiled model.
+            object_body: The body of the object the skill works on (default: the scene's own object).
+        """
 
         def find(kind: mujoco.mjtObj, name: str) -> int:
             i = mujoco.mj_name2id(m, kind, name)
@@ -302,8 +353,8 @@ class Handles:
                          mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtObj.mjOBJ_ACTUATOR)
         arm = [find(J, n) for n in ARM_JOINTS]
         fingers = [find(J, n) for n in FINGER_JOINTS]
-        object_body = find(B, OBJECT)
-        object_joint = m.body_jntadr[object_body]
+        object_id = find(B, object_body)
+        object_joint = m.body_jntadr[object_id]
         base = find(B, "base")
         gripper_base = find(B, "gripper_base")
 
@@ -324,8 +375,8 @@ class Handles:
             gripper_actuator=find(A, "gripper"),
             tcp_site=find(S, "tcp"),
             tool0_body=find(B, "tool0"),
-            object_body=object_body,
-            object_geoms=np.flatnonzero(m.geom_bodyid == object_body),
+            object_body=object_id,
+            object_geoms=np.flatnonzero(m.geom_bodyid == object_id),
             object_qpos=int(m.jnt_qposadr[object_joint]),
             object_dof=int(m.jnt_dofadr[object_joint]),
             pad_geoms=np.array([find(G, "left_pad"), find(G, "right_pad")]),
@@ -350,6 +401,8 @@ class Robot:
         arm_upper: Upper joint limits (6,) (rad).
         torque_limits_nm: Actuator torque limits (6,) (N m), read from the motors' ctrlrange.
         robot_mjcf: The robot MJCF that both engines were built from.
+        world: The scene the MuJoCo model was built from, every object in it; None: ``scene``. A robot focused on
+            one object of a task (:meth:`focus`) has that object's pick and place as its ``scene``.
     """
 
     scene: SceneConfig
@@ -363,6 +416,23 @@ class Robot:
     arm_upper: np.ndarray
     torque_limits_nm: np.ndarray
     robot_mjcf: str
+    world: SceneConfig | None = None
+
+    @property
+    def world_scene(self) -> SceneConfig:
+        """The scene the MuJoCo model was built from (every object, the bin)."""
+        return self.world if self.world is not None else self.scene
+
+    def focus(self, scene: SceneConfig, name: str) -> Robot:
+        """The same models, working on the object ``name`` of the world: ``scene`` is its pick and place (its
+        object, where it is, its goal), the handles point at its body.
+
+        Raises:
+            ModelError: the world has no object of that name.
+        """
+        world = self.world_scene
+        body = object_body_name(world, name)
+        return dataclasses.replace(self, scene=scene, world=world, handles=Handles.resolve(self.mj, body))
 
     def make_data(self) -> mujoco.MjData:
         """A fresh MuJoCo data at the ``home`` keyframe (gripper open, object at its start), forward-computed."""

@@ -48,8 +48,10 @@ from pickplace.task.faults import LEGACY_FAULT_KEYS, FaultConfig, apply_model_fa
 from pickplace.task.machine import MachineConfig, MachineOutcome, Phase, PickPlaceMachine, SegmentPlan
 from pickplace.task.observe import Observer
 from pickplace.task.profile import ProfileConfig
+from pickplace.task.tasks import TaskConfig
 from pickplace.task.telemetry import Telemetry, TelemetryRecorder
-from pickplace.world.config import SceneConfig, from_mapping
+from pickplace.world.config import LEGACY_SCENE_KEYS, BinConfig, SceneConfig, SceneObject, from_mapping
+from pickplace.world.objects import ObjectConfig
 
 log = logging.getLogger(__name__)
 
@@ -70,6 +72,9 @@ class EpisodeConfig:
             ``realistic`` (a depth camera and the robot's own sensors, a 500 Hz loop with latency, model error),
             :mod:`pickplace.task.profile`. With a realistic loop, a default ``control`` becomes
             :meth:`ControlConfig.realistic` (the ideal gains do not hold such a loop).
+        task: A task with several objects (``place``, ``stack``, ``clear``; :mod:`pickplace.task.tasks`), run by
+            :func:`~pickplace.task.task_episode.run_task`; None (default): one pick and place of the scene's
+            object, run by :func:`run_episode`.
     """
 
     scene: SceneConfig = field(default_factory=SceneConfig)
@@ -80,11 +85,16 @@ class EpisodeConfig:
     ik: IKConfig = field(default_factory=IKConfig)
     faults: FaultConfig = field(default_factory=FaultConfig)
     profile: ProfileConfig = field(default_factory=ProfileConfig)
+    task: TaskConfig | None = None
 
     def __post_init__(self) -> None:
         for name, cls in _SECTIONS.items():
             if not isinstance(getattr(self, name), cls):
                 raise ConfigError(name, getattr(self, name), f"must be a {cls.__name__}")
+        if self.task is not None:
+            if not isinstance(self.task, TaskConfig):
+                raise ConfigError("task", self.task, "must be a TaskConfig (the [task] table)")
+            self.task.check_scene(self.scene)
         if self.control == ControlConfig():  # the default gains: the profile's (ProfileConfig.control_defaults)
             object.__setattr__(self, "control", self.profile.control_defaults())
 
@@ -93,16 +103,19 @@ class EpisodeConfig:
         """Build from nested mappings ``{"scene": {...}, "planner": {...}, ...}`` (unknown keys are errors)."""
         if not isinstance(data, dict):
             raise ConfigError("config", data, "must be a table of tables")
-        tables = ["object", *_SECTIONS]
+        tables = ["object", "objects", "bin", "task", *_SECTIONS]
         unknown = sorted(set(data) - set(tables))
         if unknown:
             raise ConfigError(unknown[0], data[unknown[0]], f"unknown table; allowed: {', '.join(tables)}")
         for name in tables:
-            if not isinstance(data.get(name, {}), dict):
+            if name != "objects" and not isinstance(data.get(name, {}), dict):
                 raise ConfigError(name, data[name], "must be a table of keys")
-        parts: dict[str, Any] = {"scene": SceneConfig.from_mapping(data.get("scene", {}),
-                                                                   object_data=data.get("object")),
-                                 "profile": ProfileConfig.from_mapping(data.get("profile", {}))}
+        scene = SceneConfig.from_mapping(data.get("scene", {}), object_data=data.get("object"))
+        if "objects" in data or "bin" in data:
+            scene = _with_objects(scene, data)
+        parts: dict[str, Any] = {"scene": scene, "profile": ProfileConfig.from_mapping(data.get("profile", {}))}
+        if "task" in data:
+            parts["task"] = TaskConfig.from_mapping(data["task"])
         for name, section_cls in _SECTIONS.items():
             if name not in ("scene", "profile"):
                 base = _base(section_cls, parts["profile"])
@@ -119,6 +132,15 @@ class EpisodeConfig:
         """Nested plain data (lists for tuples), the inverse of :meth:`from_dict`."""
         out = {"object": _plain(self.scene.object.to_dict()), "scene": _plain(self.scene.to_dict())}
         out.update({name: _plain(dataclasses.asdict(getattr(self, name))) for name in _SECTIONS if name != "scene"})
+        if self.scene.others:
+            out["objects"] = [_plain(_object_entry(o)) for o in self.scene.objects]
+            del out["object"]
+            for key in ("start_xy_m", "start_yaw_rad", "goal_xy_m", "goal_yaw_rad"):
+                out["scene"].pop(key, None)
+        if self.scene.bin is not None:
+            out["bin"] = _plain(dataclasses.asdict(self.scene.bin))
+        if self.task is not None:
+            out["task"] = _plain(dataclasses.asdict(self.task))
         return out
 
     def with_profile(self, name: str) -> EpisodeConfig:
@@ -138,6 +160,56 @@ class EpisodeConfig:
     def with_object(self, **changes: Any) -> EpisodeConfig:
         """A copy whose object has some fields changed (validated)."""
         return dataclasses.replace(self, scene=self.scene.with_object(**changes))
+
+
+#: Keys of an ``[[objects]]`` entry that place the object (the others describe it, as ``[object]`` does).
+_PLACEMENT_KEYS = ("start_xy_m", "start_yaw_rad", "goal_xy_m", "goal_yaw_rad")
+
+
+def _with_objects(scene: SceneConfig, data: dict[str, Any]) -> SceneConfig:
+    """The scene with the ``[[objects]]`` (the first is the scene's own object) and the ``[bin]`` of a config."""
+    changes: dict[str, Any] = {}
+    if "bin" in data:
+        changes["bin"] = BinConfig.from_mapping(data["bin"])
+    entries = data.get("objects")
+    if entries is not None:
+        if "object" in data:
+            raise ConfigError("object", data["object"], "give either one [object] or a list of [[objects]], not both")
+        clash = sorted(set(data.get("scene", {})) & {*_PLACEMENT_KEYS, *LEGACY_SCENE_KEYS})
+        if clash:
+            raise ConfigError(f"scene.{clash[0]}", data["scene"][clash[0]],
+                              "with [[objects]], each object's start and goal go in its own entry")
+        if not isinstance(entries, list) or not entries or not all(isinstance(e, dict) for e in entries):
+            raise ConfigError("objects", entries, "must be a list of tables ([[objects]]), at least one")
+        placed = [_scene_object(i, e) for i, e in enumerate(entries)]
+        first = placed[0]
+        changes.update(object=first.object, start_xy_m=first.start_xy_m, start_yaw_rad=first.start_yaw_rad,
+                       goal_yaw_rad=first.goal_yaw_rad, others=tuple(placed[1:]))
+        if first.goal_xy_m is not None:
+            changes["goal_xy_m"] = first.goal_xy_m
+    return dataclasses.replace(scene, **changes)
+
+
+def _scene_object(i: int, entry: dict[str, Any]) -> SceneObject:
+    """One ``[[objects]]`` entry: ``name``, an object (``library = "NAME"`` and/or ``[object]`` keys) and its
+    placement (start, optional goal)."""
+    if "name" not in entry:
+        raise ConfigError(f"objects[{i}].name", None, "each object needs a name (letters, digits, underscores)")
+    described = {k: v for k, v in entry.items() if k not in _PLACEMENT_KEYS}
+    if "start_xy_m" not in entry:
+        raise ConfigError(f"objects.{entry['name']}.start_xy_m", None, "each object needs a start (x, y) on the table")
+    obj = ObjectConfig.from_mapping(described)
+    placement = {k: tuple(v) if isinstance(v, list) else v for k, v in entry.items() if k in _PLACEMENT_KEYS}
+    return SceneObject(obj, **placement)
+
+
+def _object_entry(o: SceneObject) -> dict[str, Any]:
+    """An ``[[objects]]`` entry (the inverse of :func:`_scene_object`)."""
+    out = o.object.to_dict()
+    out.update(start_xy_m=list(o.start_xy_m), start_yaw_rad=o.start_yaw_rad, goal_yaw_rad=o.goal_yaw_rad)
+    if o.goal_xy_m is not None:
+        out["goal_xy_m"] = list(o.goal_xy_m)
+    return out
 
 
 def read_toml(path: str | Path) -> dict[str, Any]:
@@ -324,6 +396,9 @@ def run_episode(config: EpisodeConfig | None = None, seed: int = 0, *, record: b
         raise ConfigError("config", config, "must be an EpisodeConfig")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ConfigError("seed", seed, "must be an integer >= 0")
+    if config.task is not None:
+        raise ConfigError("task", config.task.kind, "a task with several objects runs with "
+                                                    "pickplace.task.task_episode.run_task")
     t0 = time.perf_counter()
     robot = config.profile.plant(build(config.scene), np.random.default_rng([seed, 3]))
     apply_model_faults(robot, config.faults)

@@ -12,7 +12,7 @@ import mujoco
 import numpy as np
 
 from pickplace.errors import GraspFailed, PickPlaceError
-from pickplace.robot.model import Robot
+from pickplace.robot.model import BIN_FLOOR, Robot, object_body_name
 from pickplace.task.faults import FaultInjector
 from pickplace.task.observe import Observer, SimulatorObserver
 from pickplace.task.telemetry import TelemetryRecorder
@@ -35,8 +35,9 @@ class ObjectMoved(PickPlaceError):
     """The resting object is no longer where it was observed (it was pushed, or knocked)."""
 
 
-# Contact classes of the simulation's geoms, for the per-step contact monitor.
-_ARM, _GRIPPER, _PAD, _OBJECT, _TABLE, _ENV = range(6)
+# Contact classes of the simulation's geoms, for the per-step contact monitor: _OTHER are the objects a task
+# has besides the one being picked (and the bin's walls and the obstacles are _ENV).
+_ARM, _GRIPPER, _PAD, _OBJECT, _TABLE, _ENV, _OTHER = range(7)
 
 
 class StepMonitor:
@@ -77,6 +78,15 @@ class StepMonitor:
         cls[np.isin(m.geom_bodyid, list(h.gripper_bodies))] = _GRIPPER
         cls[h.pad_geoms] = _PAD
         cls[m.geom_bodyid == table] = _TABLE
+        world = robot.world_scene
+        for other in world.objects:  # every object of the world, then the one being picked
+            body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, object_body_name(world, other.name))
+            cls[m.geom_bodyid == body] = _OTHER
+        if world.bin is not None:  # a surface to set objects on, like the table
+            cls[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, BIN_FLOOR)] = _TABLE
+        if robot.scene.goal_support:  # the object the one in hand is set on (a tower's top)
+            support = object_body_name(world, robot.scene.goal_support)
+            cls[m.geom_bodyid == mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, support)] = _TABLE
         cls[h.object_geoms] = _OBJECT
         self.cls = cls
         self.allow_hand_object = False  # gripper/pads touching the object
@@ -105,9 +115,19 @@ class StepMonitor:
         The robot touching anything but the object (when allowed) is a fault. The object touching the table,
         a wall or the floor is a fault only while the robot holds it (it carried the object into them); an
         object that is not held (resting, or dropped) may touch whatever it falls on, including the arm while
-        it falls (``object_falling``: the arm stands still, the object came to it).
+        it falls (``object_falling``: the arm stands still, the object came to it). The other objects of a task
+        may touch anything but the robot and the object while it is held (a tower's top is a surface, the table's
+        class); whether one of them was knocked is the task's check.
         """
         lo, hi = min(a, b), max(a, b)
+        if lo >= _TABLE:  # neither the robot nor the object: things resting on each other (a tower, the bin)
+            return True
+        if hi == _OTHER:
+            if lo in (_ARM, _GRIPPER, _PAD):
+                return False
+            if lo == _OBJECT:
+                return not self.holding
+            return True
         if hi == _OBJECT and lo in (_GRIPPER, _PAD):
             return self.allow_hand_object or self.object_falling
         if (lo, hi) == (_ARM, _OBJECT):

@@ -391,7 +391,7 @@ class PickPlaceSkill:
             self.arm.segment_checker = None  # a sub-millimetre correction: nothing to predict
             self.arm.execute(Phase.DESCEND_PLACE)
         monitor, observer = self.monitor, self.observer
-        z_table_touch = self.robot.scene.resting_z_m(self.configs.targets.R_world_object_goal) + 0.003
+        z_table_touch = float(self.robot.scene.goal_resting_m(self.configs.targets.R_world_object_goal)[2]) + 0.003
         mass_kg = self.arm.payload.mass_kg if self.arm.payload is not None else 0.0
 
         def hook(d: mujoco.MjData) -> None:

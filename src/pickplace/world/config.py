@@ -41,6 +41,99 @@ LEGACY_SCENE_KEYS = {
 
 
 @dataclass(frozen=True)
+class SceneObject:
+    """One more object on the table (a task's ``[[objects]]`` beyond the first), named by its object's name.
+
+    Attributes:
+        object: The object (its ``name`` names its body and geoms, and must be unique in the scene).
+        start_xy_m: Where its origin starts on the table (x, y) (m).
+        start_yaw_rad: Its initial rotation about world z from its resting frame (rad).
+        goal_xy_m: Where a ``place`` task must put it (x, y) (m); None: no goal of its own.
+        goal_yaw_rad: Its yaw at the goal (rad), modulo its symmetry.
+    """
+
+    object: ObjectConfig
+    start_xy_m: tuple[float, float]
+    start_yaw_rad: float = 0.0
+    goal_xy_m: tuple[float, float] | None = None
+    goal_yaw_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        if not isinstance(self.object, ObjectConfig):
+            raise ConfigError("objects.object", self.object, "must be an ObjectConfig")
+        where = f"objects.{self.object.name}"
+        set_(self, "start_xy_m", check_vector(f"{where}.start_xy_m", self.start_xy_m, 2, unit="m"))
+        set_(self, "start_yaw_rad", check_range(f"{where}.start_yaw_rad", self.start_yaw_rad, -2 * math.pi,
+                                                2 * math.pi, unit="rad"))
+        if self.goal_xy_m is not None:
+            set_(self, "goal_xy_m", check_vector(f"{where}.goal_xy_m", self.goal_xy_m, 2, unit="m"))
+        set_(self, "goal_yaw_rad", check_range(f"{where}.goal_yaw_rad", self.goal_yaw_rad, -2 * math.pi,
+                                               2 * math.pi, unit="rad"))
+
+    @property
+    def name(self) -> str:
+        """Its name (its object's)."""
+        return self.object.name
+
+
+@dataclass(frozen=True)
+class BinConfig:
+    """An open box on the table (TOML ``[bin]``): a floor and four walls; a ``clear`` task fills it.
+
+    Attributes:
+        xy_m: Centre of the bin on the table (x, y) (m).
+        inner_size_xy_m: Inside extent of the bin, wall to wall (x, y) (m).
+        wall_height_m: Height of the walls above the table (m).
+        wall_thickness_m: Thickness of the walls (m).
+        floor_thickness_m: Thickness of the floor (m): objects in the bin rest this high above the table.
+    """
+
+    xy_m: tuple[float, float] = (0.45, -0.31)
+    inner_size_xy_m: tuple[float, float] = (0.34, 0.28)
+    wall_height_m: float = 0.05
+    wall_thickness_m: float = 0.01
+    floor_thickness_m: float = 0.005
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        set_(self, "xy_m", check_vector("bin.xy_m", self.xy_m, 2, unit="m"))
+        set_(self, "inner_size_xy_m", check_vector("bin.inner_size_xy_m", self.inner_size_xy_m, 2, 0.1, 0.6,
+                                                   unit="m"))
+        set_(self, "wall_height_m", check_range("bin.wall_height_m", self.wall_height_m, 0.01, 0.15, unit="m"))
+        set_(self, "wall_thickness_m", check_range("bin.wall_thickness_m", self.wall_thickness_m, 0.002, 0.05,
+                                                   unit="m"))
+        set_(self, "floor_thickness_m", check_range("bin.floor_thickness_m", self.floor_thickness_m, 0.001, 0.03,
+                                                    unit="m"))
+        if self.floor_thickness_m >= self.wall_height_m:
+            raise ConfigError("bin.floor_thickness_m", self.floor_thickness_m,
+                              f"must be below the walls' height ({self.wall_height_m:g} m)")
+
+    @property
+    def outer_box_xy_m(self) -> tuple[np.ndarray, np.ndarray]:
+        """Corners ``(lo, hi)`` (2,) of the bin's footprint, walls included (m)."""
+        half = np.asarray(self.inner_size_xy_m) / 2 + self.wall_thickness_m
+        return np.asarray(self.xy_m) - half, np.asarray(self.xy_m) + half
+
+    @property
+    def inner_box_xy_m(self) -> tuple[np.ndarray, np.ndarray]:
+        """Corners ``(lo, hi)`` (2,) of the bin's inside (m)."""
+        half = np.asarray(self.inner_size_xy_m) / 2
+        return np.asarray(self.xy_m) - half, np.asarray(self.xy_m) + half
+
+    def floor_z_m(self, table_height_m: float) -> float:
+        """Height of the bin's floor, where objects in it rest (m)."""
+        return table_height_m + self.floor_thickness_m
+
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, Any]) -> BinConfig:
+        """From a TOML ``[bin]`` table."""
+        if not isinstance(data, Mapping):
+            raise ConfigError("bin", data, "must be a table of keys")
+        return from_mapping(cls, data, "bin")
+
+
+@dataclass(frozen=True)
 class SceneConfig:
     """The world the robot works in. Positions are in the world frame (m), robot base at the origin.
 
@@ -62,6 +155,12 @@ class SceneConfig:
         obstacle_xy_m: The wall's centre (x, y) on the table (m), fixed wherever the start and the goal are
             (e.g. for objects drawn anywhere around it); ``None`` (default): placed by ``obstacle_offset_xy_m``.
         timestep_s: Simulation time step (s).
+        others: More objects on the table (a task's ``[[objects]]`` after the first), each named by its object's
+            name: obstacles to the arm and to the carried object until a task picks them.
+        bin: An open box on the table (``clear`` tasks empty the table into it), or None.
+        goal_z_m: Height of the surface the object is set down on at the goal (m): the top of a tower, the bin's
+            floor; None (default): the table top.
+        goal_support: Name of the object it is set down on (the tower's top), or ``""`` (the table or the bin).
     """
 
     object: ObjectConfig = field(default_factory=ObjectConfig)
@@ -79,6 +178,10 @@ class SceneConfig:
     obstacle_offset_xy_m: tuple[float, float] = (0.07, 0.0)
     obstacle_xy_m: tuple[float, float] | None = None
     timestep_s: float = 0.001
+    others: tuple[SceneObject, ...] = ()
+    bin: BinConfig | None = None
+    goal_z_m: float | None = None
+    goal_support: str = ""
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -109,15 +212,73 @@ class SceneConfig:
         if self.obstacle_xy_m is not None:
             set_(self, "obstacle_xy_m", check_vector("scene.obstacle_xy_m", self.obstacle_xy_m, 2, unit="m"))
         set_(self, "timestep_s", check_range("scene.timestep_s", self.timestep_s, 1e-4, 0.005, unit="s"))
+        set_(self, "others", tuple(self.others))
+        for o in self.others:
+            if not isinstance(o, SceneObject):
+                raise ConfigError("objects", o, "must be SceneObjects (the [[objects]] tables)")
+        if self.bin is not None and not isinstance(self.bin, BinConfig):
+            raise ConfigError("bin", self.bin, "must be a BinConfig (the [bin] table)")
+        if self.goal_z_m is not None:
+            set_(self, "goal_z_m", check_range("scene.goal_z_m", self.goal_z_m, self.table_height_m,
+                                               self.table_height_m + 0.5, unit="m (at or above the table top)"))
+        if not isinstance(self.goal_support, str):
+            raise ConfigError("scene.goal_support", self.goal_support, "must be an object's name, or empty")
         self._check_on_table("scene.start_xy_m", self.start_xy_m)
         self.check_start_clear_of_obstacle()
+        if self.others or self.bin is not None:
+            self._check_objects()
         # The goal is checked by check_goal_on_table(), after its reachability: a goal far out of the
         # arm's reach must be reported as unreachable, which only the kinematics can tell.
 
+    @property
+    def objects(self) -> tuple[SceneObject, ...]:
+        """Every object on the table, the scene's own first (its goal is the scene's), then :attr:`others`."""
+        first = SceneObject(self.object, self.start_xy_m, self.start_yaw_rad, self.goal_xy_m, self.goal_yaw_rad)
+        return (first, *self.others)
+
+    def _check_objects(self) -> None:
+        """Every object's start lies on the table, clear of the wall, the bin and every other object; names are
+        unique (they name the bodies)."""
+        objects = self.objects
+        names = [o.name for o in objects]
+        for i, o in enumerate(objects):
+            where = "scene.start_xy_m" if i == 0 else f"objects.{o.name}.start_xy_m"
+            if names.count(o.name) > 1:
+                raise ConfigError(f"objects.{o.name}", o.name, "names must be unique (give each object a name)")
+            if i > 0:
+                self._check_on_table(where, o.start_xy_m, o.object)
+                if self.obstacle:
+                    gap = footprint_gap(o.object, o.start_xy_m, o.start_yaw_rad, *self.obstacle_box_xy_m)
+                    if gap < 0.0:
+                        raise InsideObstacle(where, tuple(o.start_xy_m), f"the {o.name} would start inside the "
+                                                                         "obstacle wall")
+            if self.bin is not None:
+                gap = footprint_gap(o.object, o.start_xy_m, o.start_yaw_rad, *self.bin.outer_box_xy_m)
+                if gap < 0.0:
+                    lo, hi = self.bin.outer_box_xy_m
+                    raise InsideObstacle(where, tuple(o.start_xy_m), f"the {o.name} would start on the bin (x in "
+                                         f"[{lo[0]:.3f}, {hi[0]:.3f}], y in [{lo[1]:.3f}, {hi[1]:.3f}] m)")
+            for p in objects[:i]:
+                gap = objects_gap(p.object, p.start_xy_m, p.start_yaw_rad, o.object, o.start_xy_m, o.start_yaw_rad)
+                if gap < 0.0:
+                    raise ConfigError(where, tuple(o.start_xy_m), f"the {o.name} would overlap the {p.name} "
+                                                                  f"(at {tuple(p.start_xy_m)} m) by "
+                                                                  f"{-gap * 1e3:.1f} mm")
+
     def check_goal_on_table(self) -> None:
         """Raise :class:`ConfigError` unless the object's footprint at the goal (any yaw) lies on the table,
-        clear of the obstacle."""
+        clear of the obstacle, and either inside the bin or clear of it."""
         self._check_on_table("scene.goal_xy_m", self.goal_xy_m)
+        if self.bin is not None:  # at the goal's yaw (a turn by its symmetry leaves the footprint as it is)
+            fp = footprint(self.object, self.goal_xy_m, self.goal_yaw_rad)
+            lo, hi = self.bin.inner_box_xy_m
+            inside = bool(np.all(fp >= lo) and np.all(fp <= hi))
+            if not inside and footprint_gap(self.object, self.goal_xy_m, self.goal_yaw_rad,
+                                            *self.bin.outer_box_xy_m) < 0.0:
+                raise InsideObstacle("scene.goal_xy_m", tuple(self.goal_xy_m),
+                                     f"the {self.object.name} at the goal would stand on the bin's wall: it must "
+                                     f"lie inside x in [{lo[0]:.3f}, {hi[0]:.3f}], y in [{lo[1]:.3f}, {hi[1]:.3f}] "
+                                     "m, or clear of the bin")
         if self.obstacle:
             lo, hi = self.obstacle_box_xy_m
             near = np.clip(np.asarray(self.goal_xy_m), lo, hi)
@@ -157,16 +318,18 @@ class SceneConfig:
                                  f"the {self.object.name} would start inside the obstacle wall (wall x in "
                                  f"[{lo[0]:.3f}, {hi[0]:.3f}], y in [{lo[1]:.3f}, {hi[1]:.3f}] m)")
 
-    def _check_on_table(self, name: str, xy: tuple[float, float]) -> None:
-        """The object's whole footprint (any yaw) must lie on the table top."""
-        r = self.footprint_radius_m
+    def _check_on_table(self, name: str, xy: tuple[float, float], obj: ObjectConfig | None = None) -> None:
+        """The object's (default: the scene's) whole footprint (any yaw) must lie on the table top."""
+        obj = obj if obj is not None else self.object
+        v = obj.geometry().vertices
+        r = float(np.max(np.hypot(v[:, 0], v[:, 1])))
         for i, axis in enumerate("xy"):
             lo = self.table_center_xy_m[i] - self.table_size_xy_m[i] / 2 + r
             hi = self.table_center_xy_m[i] + self.table_size_xy_m[i] / 2 - r
             if not lo <= xy[i] <= hi:
                 raise ConfigError(
                     name, tuple(xy),
-                    f"the {self.object.name} must lie on the table: {axis} must be in [{lo:.3f}, {hi:.3f}] m",
+                    f"the {obj.name} must lie on the table: {axis} must be in [{lo:.3f}, {hi:.3f}] m",
                 )
 
     @property
@@ -186,9 +349,17 @@ class SceneConfig:
         v = self.object.geometry().vertices
         return float(self.table_height_m - np.min(v @ np.asarray(R_world_object, dtype=float)[2]))
 
+    @property
+    def goal_surface_m(self) -> float:
+        """Height of the surface the object is set down on at the goal (m): ``goal_z_m``, or the table top."""
+        return self.table_height_m if self.goal_z_m is None else self.goal_z_m
+
     def goal_resting_m(self, R_world_object: np.ndarray) -> np.ndarray:
-        """Where the object's origin comes to rest at the goal (3,) turned by ``R_world_object`` (m)."""
-        return np.array([*self.goal_xy_m, self.resting_z_m(R_world_object)])
+        """Where the object's origin comes to rest at the goal (3,) turned by ``R_world_object`` (m), on the goal's
+        surface (:attr:`goal_surface_m`)."""
+        v = self.object.geometry().vertices
+        z = self.goal_surface_m - float(np.min(v @ np.asarray(R_world_object, dtype=float)[2]))
+        return np.array([*self.goal_xy_m, z])
 
     @property
     def start_pos_m(self) -> np.ndarray:
@@ -197,8 +368,8 @@ class SceneConfig:
 
     @property
     def goal_pos_m(self) -> np.ndarray:
-        """Where the object's origin must come to rest (3,) in the world (m)."""
-        return np.array([*self.goal_xy_m, self.rest_z_m])
+        """Where the object's origin must come to rest (3,) in the world (m), on the goal's surface."""
+        return np.array([*self.goal_xy_m, self.rest_z_m + self.goal_surface_m - self.table_height_m])
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any], base: SceneConfig | None = None,
@@ -222,7 +393,7 @@ class SceneConfig:
                 obj = _legacy_object_change(obj, key, target.split(".", 1)[1], value)
             else:
                 scene_changes[target] = value
-        names = [f.name for f in dataclasses.fields(cls) if f.name != "object"]
+        names = [f.name for f in dataclasses.fields(cls) if f.name not in ("object", "others", "bin")]
         for key, value in scene_changes.items():
             if key not in names:
                 raise ConfigError(f"scene.{key}", value, f"unknown key; allowed: {', '.join(names)} (and the "
@@ -238,10 +409,10 @@ class SceneConfig:
             raise
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain data (the ``[scene]`` table; the object is its own table, :meth:`ObjectConfig.to_dict`). Fields
-        that are ``None`` (not set) are left out: TOML has no null, and their default is ``None``."""
+        """Plain data (the ``[scene]`` table; the object, the other objects and the bin are tables of their own).
+        Fields that are ``None`` (not set) are left out: TOML has no null, and their default is ``None``."""
         out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
-               if f.name != "object" and getattr(self, f.name) is not None}
+               if f.name not in ("object", "others", "bin") and getattr(self, f.name) is not None}
         return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
 
     def with_object(self, **changes: Any) -> SceneConfig:
@@ -260,6 +431,44 @@ def _legacy_object_change(obj: ObjectConfig, key: str, fld: str, value: Any) -> 
         return dataclasses.replace(obj, **{fld: value})
     except ConfigError as exc:  # name the key the user wrote
         raise ConfigError(f"scene.{key}", value, exc.allowed) from None
+
+
+def footprint(obj: ObjectConfig, xy_m: tuple[float, float] | np.ndarray, yaw_rad: float) -> np.ndarray:
+    """Corners (N, 2) of the convex hull of the object's footprint on the table at ``xy_m``, turned by ``yaw_rad``
+    about z (m): its vertices seen from above."""
+    from scipy.spatial import ConvexHull
+
+    c, s_ = math.cos(yaw_rad), math.sin(yaw_rad)
+    v = obj.geometry().vertices[:, :2] @ np.array([[c, s_], [-s_, c]]) + np.asarray(xy_m, dtype=float)
+    return v[ConvexHull(v).vertices]
+
+
+def polygon_gap(a: np.ndarray, b: np.ndarray) -> float:
+    """Separation of two convex polygons (N, 2), (M, 2) along the best separating axis (m): > 0 apart (a lower
+    bound of their distance), < 0 overlapping (minus the smallest push that separates them)."""
+    best = -math.inf
+    for poly in (a, b):
+        edges = np.roll(poly, -1, axis=0) - poly
+        normals = np.column_stack([edges[:, 1], -edges[:, 0]])
+        normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+        pa, pb = a @ normals.T, b @ normals.T
+        sep = np.maximum(pb.min(axis=0) - pa.max(axis=0), pa.min(axis=0) - pb.max(axis=0))
+        best = max(best, float(sep.max()))
+    return best
+
+
+def footprint_gap(obj: ObjectConfig, xy_m: tuple[float, float], yaw_rad: float, lo: np.ndarray,
+                  hi: np.ndarray) -> float:
+    """Separation of the object's footprint from an axis-aligned box ``[lo, hi]`` on the table (m), as
+    :func:`polygon_gap`."""
+    box = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
+    return polygon_gap(footprint(obj, xy_m, yaw_rad), box)
+
+
+def objects_gap(a: ObjectConfig, a_xy: tuple[float, float], a_yaw: float, b: ObjectConfig,
+                b_xy: tuple[float, float], b_yaw: float) -> float:
+    """Separation of two objects' footprints on the table (m), as :func:`polygon_gap`."""
+    return polygon_gap(footprint(a, a_xy, a_yaw), footprint(b, b_xy, b_yaw))
 
 
 def from_mapping(cls: type[T], data: Mapping[str, Any], section: str, base: T | None = None,
@@ -293,10 +502,16 @@ __all__ = [
     "LEGACY_SCENE_KEYS",
     "MAX_CUBE_SIZE_M",
     "MIN_CUBE_SIZE_M",
+    "BinConfig",
     "SceneConfig",
+    "SceneObject",
     "check_finite",
     "check_int",
     "check_range",
     "check_vector",
+    "footprint",
+    "footprint_gap",
     "from_mapping",
+    "objects_gap",
+    "polygon_gap",
 ]
