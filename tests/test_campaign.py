@@ -66,7 +66,7 @@ SUMMARY_KEYS = {
     "tcp_tracking_error_max_m", "wall_time_mean_s", "successes_with_recovery", "retries_histogram",
     "failed_before_motion", "failed_before_motion_rate", "failed_after_motion", "failed_after_motion_rate",
     "worker_failures", "worker_failure_rate", "failures", "failed_trials", "success_rate_attempted",
-    "success_rate_attempted_ci95", "by_object",
+    "success_rate_attempted_ci95", "by_object", "task_time_mean_s", "task_time_per_object_mean_s", "failures_by_object",
 }
 #: Per-trial limit of the isolation tests (s): far above a normal trial (~0.7 s on an idle machine, 4-5 s with both
 #: cores kept busy by two other processes), counted only once a worker that is up takes the trial; the hanging trial

@@ -146,3 +146,14 @@ def test_user_mesh_runs_end_to_end(tmp_path, capsys) -> None:
     result = json.loads(capsys.readouterr().out)
     assert result["success"] and result["config"]["object"]["kind"] == "mesh"
     assert result["place_error_xy_m"] < 0.001
+
+
+def test_run_task_json_and_its_usage_errors(capsys) -> None:
+    assert main(["run", "--task", "stack", "--objects", "2", "--seed", "3", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["success"] and out["kind"] == "stack" and len(out["objects"]) == 2
+    assert [label for _, label in out["order"]] == ["level 1", "level 2"]
+    assert main(["run", "--objects", "2"]) == 1
+    assert "--objects and --order go with --task" in capsys.readouterr().err
+    assert main(["run", "--task", "place", "--objects", "9"]) == 1
+    assert "--objects" in capsys.readouterr().err

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -19,7 +20,7 @@ from pickplace.robot.model import build
 from pickplace.task.episode import EpisodeConfig, run_episode
 from pickplace.task.task_episode import run_task
 from pickplace.task.tasks import TaskConfig, TaskPlanner, random_task_scene
-from pickplace.world.config import SceneConfig, SceneObject
+from pickplace.world.config import BinConfig, SceneConfig, SceneObject
 from pickplace.world.objects import ObjectConfig, library_object
 
 
@@ -251,3 +252,38 @@ def test_a_knocked_placed_object_is_detected_and_named(repair: bool) -> None:
         assert [name for name, _ in r.order] == ["a", "b", "a"]
     else:
         assert not r.success and r.failure_kind == "ObjectKnocked" and "the a was knocked" in r.failure_reason
+
+
+# --------------------------------------------------------------------------- campaigns
+def test_task_campaign_trials_are_drawn_whole_and_reproducibly() -> None:
+    from pickplace.eval.campaign import CampaignConfig, RandomizationSpec, make_trial
+
+    base = EpisodeConfig(scene=SceneConfig(bin=BinConfig()), task=TaskConfig(kind="clear"))
+    spec = RandomizationSpec(task_objects=(2, 5))
+    campaign = CampaignConfig(base, spec, trials=20, seed=3)
+    trials = [make_trial(campaign, i) for i in range(20)]
+    counts = {len(t.config.scene.objects) for t in trials}
+    assert counts <= {2, 3, 4, 5} and len(counts) >= 3  # the count varies within the range
+    assert len({t.config.scene for t in trials}) == 20
+    for t in trials:
+        assert t.config.task == base.task and t.config.scene.bin is not None
+        assert t.params["task_objects"] == len(t.config.scene.objects)
+        assert make_trial(campaign, t.index).config == t.config  # a trial depends on the seed and its index only
+    assert RandomizationSpec.from_dict(spec.to_dict()) == spec
+    with pytest.raises(ConfigError) as err:
+        RandomizationSpec(task_objects=(3, 2))
+    assert err.value.field == "randomization.task_objects"
+
+
+@pytest.mark.slow
+def test_a_task_campaign_runs_and_summarizes_by_object(tmp_path: Path) -> None:
+    from pickplace.eval.campaign import CampaignConfig, RandomizationSpec, run_campaign
+
+    base = EpisodeConfig(task=TaskConfig(kind="stack"))
+    campaign = CampaignConfig(base, RandomizationSpec(objects=("cube",), task_objects=(2, 2)), trials=2, workers=2)
+    run = run_campaign(campaign, tmp_path)
+    s = run.summary
+    assert s.trials == 2 and s.successes == 2
+    assert 4.0 < s.task_time_mean_s < 20.0 and s.task_time_per_object_mean_s == pytest.approx(s.task_time_mean_s / 2)
+    assert s.place_error_xy_rms_m < 0.003  # over the four picks
+    assert not s.failures_by_object

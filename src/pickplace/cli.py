@@ -353,7 +353,7 @@ def task_config_from_args(args: argparse.Namespace, config: EpisodeConfig) -> Ep
         changes["order"] = args.order
     task = dataclasses.replace(task, **changes)
     scene = config.scene
-    if args.objects is not None or not scene.others:
+    if args.objects is not None or (config.task is None and not scene.others):  # else: the config's [[objects]]
         n = args.objects if args.objects is not None else 3
         scene = random_task_scene(task.kind, n, np.random.default_rng([args.seed, 7]), base=scene)
     elif task.kind == "clear" and scene.bin is None:
@@ -586,6 +586,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-randomize", action="store_true",
                    help="run the base config in every trial (only the episode seed varies)")
     p.add_argument("--json", action="store_true", help="print summary.json instead of the tables")
+    add_task_options(p)
     p.set_defaults(func=_cmd_eval)
 
     p = sub.add_parser("objects", help="the object library: sizes, masses, friction and how many grasps each offers")
@@ -644,6 +645,22 @@ def campaign_from_args(args: argparse.Namespace) -> CampaignConfig:
         base = episode_config_from_args(args)
     if args.no_randomize:
         spec = RandomizationSpec.off()
+    if args.task is not None or base.task is not None:
+        from pickplace.task.tasks import TaskConfig
+
+        task = base.task if base.task is not None else TaskConfig(kind=args.task)
+        task = dataclasses.replace(task, **{k: v for k, v in (("kind", args.task), ("order", args.order))
+                                            if v is not None})
+        scene = base.scene
+        if task.kind == "clear" and scene.bin is None:
+            from pickplace.world.config import BinConfig
+
+            scene = dataclasses.replace(scene, bin=BinConfig())
+        base = dataclasses.replace(base, scene=scene, task=task)
+        if args.objects is not None:
+            spec = dataclasses.replace(spec, task_objects=(args.objects, args.objects))
+    elif args.objects is not None or args.order is not None:
+        raise CliError("--objects and --order go with --task place|stack|clear")
     return CampaignConfig(base, spec, args.trials if args.trials is not None else 100,
                           args.seed if args.seed is not None else 0, args.workers, args.timeout)
 

@@ -216,7 +216,20 @@ def summary_rows(summary: CampaignSummary) -> list[tuple[str, str]]:
            f"{_rate_ci(o.successes, o.trials - o.rejected, o.success_rate_attempted_ci95)}, "
            f"{_fmt(o.place_error_xy_rms_m, 1e3)} mm, "
            + " ".join(f"{k} {v}" for k, v in o.grasps.items())) for o in summary.by_object]
-         if len(summary.by_object) > 1 else [])
+         if len(summary.by_object) > 1 else []) + _task_rows(summary)
+
+
+def _task_rows(summary: CampaignSummary) -> list[tuple[str, str]]:
+    """The rows of a task campaign: task time, and failures by object."""
+    if not math.isfinite(summary.task_time_mean_s) and not summary.failures_by_object:
+        return []
+    rows = []
+    if math.isfinite(summary.task_time_mean_s):
+        rows.append(("task time mean / per object (successes, simulated)",
+                     f"{_fmt(summary.task_time_mean_s)} / {_fmt(summary.task_time_per_object_mean_s)} s"))
+    if summary.failures_by_object:
+        rows.append(("failed trials by object", ", ".join(f"{k} {v}" for k, v in summary.failures_by_object.items())))
+    return rows
 
 
 def _rate_ci(k: int, n: int, ci: tuple[float, float]) -> str:

@@ -26,7 +26,7 @@ from pickplace.errors import ConfigError
 from pickplace.grasping.targets import object_yaw, yaw_error
 from pickplace.robot.model import Robot, build
 from pickplace.task.arm import Arm
-from pickplace.task.episode import EpisodeConfig, EpisodeResult, _plain, _result
+from pickplace.task.episode import EpisodeConfig, EpisodeResult, _plain, _result, run_episode
 from pickplace.task.faults import FaultConfig
 from pickplace.task.observe import SimulatorObserver
 from pickplace.task.phases import Phase
@@ -37,6 +37,9 @@ from pickplace.world.config import SceneConfig
 
 log = logging.getLogger(__name__)
 
+#: The failure phase of a task that failed between its pick and places (no pick could start, a knocked object not
+#: repaired, an object not where the task wants it at the end).
+TASK_PHASE = "TASK"
 #: Most bin or buffer spots tried for one object whose pick cannot start at the first one.
 SPOTS_TRIED = 3
 
@@ -98,7 +101,7 @@ class TaskResult:
         order_policy: ``planned`` or ``listed``.
         failure_reason: Why the task failed, or None.
         failure_object: The object whose pick and place failed, or None.
-        failure_phase: Its phase that failed, or None.
+        failure_phase: Its phase that failed; :data:`TASK_PHASE` for a failure between pick and places; None.
         failure_kind: The error behind the failure, or None.
         seed: The task's seed.
         order: ``(object, goal label)`` of each pick and place, in the order run (``goal``, ``buffer``, ``bin``,
@@ -246,7 +249,7 @@ def run_task(config: EpisodeConfig, seed: int = 0, *, record: bool = False, fram
     result = TaskResult(
         success=success, kind=task.kind, order_policy=task.order,
         failure_reason=failure[0] if failure else None, failure_object=failure[1] if failure else None,
-        failure_phase=failure[2] if failure else None, failure_kind=failure[3] if failure else None,
+        failure_phase=(failure[2] or TASK_PHASE) if failure else None, failure_kind=failure[3] if failure else None,
         seed=seed, order=tuple(run.order), picks=tuple(run.picks), pick_spans_s=tuple(run.spans),
         skipped=tuple(run.skipped),
         knocked=tuple(run.knocks), objects=objects, total_time_s=run.t,
@@ -479,4 +482,10 @@ class _TaskRun:
         return tuple(out)
 
 
-__all__ = ["Knock", "ObjectOutcome", "TaskResult", "run_task"]
+def run_trial(config: EpisodeConfig, seed: int = 0) -> EpisodeResult | TaskResult:
+    """One pick and place (:func:`~pickplace.task.episode.run_episode`) or, with a ``[task]``, a task
+    (:func:`run_task`): what a campaign's trial runs."""
+    return run_task(config, seed) if config.task is not None else run_episode(config, seed)
+
+
+__all__ = ["TASK_PHASE", "Knock", "ObjectOutcome", "TaskResult", "run_task", "run_trial"]

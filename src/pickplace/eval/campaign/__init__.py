@@ -80,7 +80,7 @@ from pickplace.eval.campaign.summary import (
     summarize,
     wilson_interval,
 )
-from pickplace.task.episode import run_episode
+from pickplace.task.task_episode import run_trial
 
 log = logging.getLogger(__name__)
 
@@ -133,7 +133,7 @@ def run_campaign(
     backend: Literal["local", "ray"] = "local",
     ray_address: str | None = None,
     on_progress: Callable[[CampaignProgress], None] | None = None,
-    run_fn: RunFn = run_episode,
+    run_fn: RunFn = run_trial,
 ) -> CampaignRun:
     """Run (or complete) a campaign, persisting every trial as it finishes.
 
@@ -149,7 +149,8 @@ def run_campaign(
             (``RAY_AUTH_TOKEN``, ``RAY_AUTH_TOKEN_PATH``, ``~/.ray/auth_token``); see
             :mod:`pickplace.eval.campaign.ray_cluster`.
         on_progress: Called in this process at the start and after each finished trial.
-        run_fn: The episode function run in the workers: ``run_fn(config, seed) -> EpisodeResult``; must be
+        run_fn: The trial function run in the workers: ``run_fn(config, seed) -> EpisodeResult`` (or a
+            ``TaskResult`` for a task, :func:`~pickplace.task.task_episode.run_trial`, the default); must be
             picklable (a module-level function). Tests pass their own to inject crashes and hangs.
 
     Returns:

@@ -23,6 +23,7 @@ import numpy as np
 
 from pickplace.errors import ConfigError, InsideObstacle, PickPlaceError
 from pickplace.task.episode import EpisodeConfig, EpisodeResult
+from pickplace.task.task_episode import TaskResult
 from pickplace.world.config import check_int, check_range, check_vector
 from pickplace.world.objects import LIBRARY, ObjectConfig, library_object, scaled
 
@@ -107,7 +108,12 @@ class RandomizationSpec:
             default; not with ``object_mass_scale``.
         objects: Names of library objects, one drawn uniformly per trial to replace the base config's object
             (before its mass, size and friction are scaled); ``None`` (default): the base config's object. Its
-            draw comes after every other, so adding it changes none of their values.
+            draw comes after every other, so adding it changes none of their values. In a task campaign: the
+            library objects the trials' objects are drawn from.
+        task_objects: In a task campaign (the base config has a ``[task]``): the range ``(lo, hi)`` of the number
+            of objects per trial, both included; ``None``: as many as the base config has (3 if it has one).
+            A task campaign draws each trial's objects and their poses whole
+            (:func:`~pickplace.task.tasks.random_task_scene`); the single object's ranges above do not apply.
     """
 
     start_dx_m: Range | None = (-0.05, 0.05)
@@ -125,8 +131,16 @@ class RandomizationSpec:
     joint_noise_rad: Range | None = None
     object_mass_kg: Range | None = None
     objects: tuple[str, ...] | None = None
+    task_objects: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
+        if self.task_objects is not None:
+            value = self.task_objects
+            if isinstance(value, str) or not isinstance(value, (list, tuple)) or len(value) != 2:
+                raise ConfigError("randomization.task_objects", value, "must be a range [lo, hi] of object counts")
+            lo = check_int("randomization.task_objects", value[0], 1, 8)
+            hi = check_int("randomization.task_objects", value[1], lo, 8)
+            object.__setattr__(self, "task_objects", (lo, hi))
         if self.objects is not None:
             if isinstance(self.objects, str) or not isinstance(self.objects, (list, tuple)) or not self.objects:
                 raise ConfigError("randomization.objects", self.objects,
@@ -164,13 +178,13 @@ class RandomizationSpec:
         base_object = base_object if base_object is not None else ObjectConfig()
         changes: dict[str, Any] = {}
         for key, value in data.items():
-            if key == "objects":
-                changes["objects"] = None if value is False else value
+            if key in ("objects", "task_objects"):
+                changes[key] = None if value is False else value
                 continue
             name, convert = LEGACY_SPEC_KEYS.get(key, (key, None))
             if name not in _SPEC_FIELDS:
                 raise ConfigError(f"randomization.{key}", value,
-                                  f"unknown key; allowed: {', '.join(_SPEC_FIELDS)}, objects")
+                                  f"unknown key; allowed: {', '.join(_SPEC_FIELDS)}, objects, task_objects")
             if value is False:
                 changes[name] = None
             elif isinstance(value, (list, tuple)):
@@ -186,6 +200,8 @@ class RandomizationSpec:
                                for name in _SPEC_FIELDS if name not in _NEWER_FIELDS or getattr(self, name)}
         if self.objects is not None:  # newer fields only when set: earlier campaigns keep their identity
             out["objects"] = list(self.objects)
+        if self.task_objects is not None:
+            out["task_objects"] = list(self.task_objects)
         return out
 
     def active(self) -> list[str]:
@@ -284,6 +300,8 @@ def _check_extremes(base: EpisodeConfig, spec: RandomizationSpec) -> None:
     """Every corner of the randomization box gives a valid scene, with the object on the table at start and goal
     (for each of ``objects``). A start inside the obstacle is not an error: the trial draws again
     (:func:`make_trial`)."""
+    if base.task is not None:  # a task's trials are drawn whole (make_trial); each is checked as it is drawn
+        return
     active = [name for name in spec.active() if _SPEC_FIELDS[name][3] in ("offset", "object")]  # scene fields
     free = dataclasses.replace(base, scene=dataclasses.replace(base.scene, obstacle=False))
     for corner, name in itertools.product(range(1 << len(active)), spec.objects or (None,)):
@@ -370,6 +388,8 @@ def make_trial(campaign: CampaignConfig, index: int) -> Trial:
     """Trial ``index`` of ``campaign``: its sampled parameters, config and seed."""
     check_int("trial", index, 0)
     rng = np.random.default_rng(np.random.SeedSequence(campaign.seed, spawn_key=(index, 1)))
+    if campaign.base.task is not None:
+        return _task_trial(campaign, index, rng)
     for _ in range(MAX_REDRAWS):
         params = campaign.randomization.sample(rng)
         try:
@@ -382,13 +402,31 @@ def make_trial(campaign: CampaignConfig, index: int) -> Trial:
                       f"put the object inside the obstacle at its start or goal in {MAX_REDRAWS} draws running")
 
 
+def _task_trial(campaign: CampaignConfig, index: int, rng: np.random.Generator) -> Trial:
+    """Trial ``index`` of a task campaign: its objects (how many, which, where) drawn whole."""
+    from pickplace.task.tasks import random_task_scene
+
+    base, spec = campaign.base, campaign.randomization
+    assert base.task is not None
+    count = len(base.scene.objects) if base.scene.others else 3
+    lo, hi = spec.task_objects or (count, count)
+    n = int(rng.integers(lo, hi + 1))
+    plain = dataclasses.replace(base.scene, others=(), bin=None)
+    scene = random_task_scene(base.task.kind, n, rng, base=plain, names=spec.objects)
+    if base.scene.bin is not None and scene.bin is not None:
+        scene = dataclasses.replace(scene, bin=base.scene.bin)
+    config = dataclasses.replace(base, scene=scene)
+    params = {"task_objects": n, "objects": [o.object.name for o in scene.objects]}
+    return Trial(index, trial_seed(campaign.seed, index), params, config)
+
+
 def trial_config(campaign: CampaignConfig, index: int) -> tuple[EpisodeConfig, int]:
     """``(config, seed)`` of trial ``index``: ``run_episode(config, seed)`` re-runs it alone, exactly."""
     t = make_trial(campaign, index)
     return t.config, t.seed
 
 
-RunFn = Callable[[EpisodeConfig, int], EpisodeResult]
+RunFn = Callable[[EpisodeConfig, int], "EpisodeResult | TaskResult"]
 
 
 def worker_failure(trial: Trial, kind: str, reason: str, wall_time_s: float) -> dict[str, Any]:

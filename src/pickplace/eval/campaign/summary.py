@@ -130,6 +130,9 @@ class ObjectStats:
 class CampaignSummary:
     """Figures of a campaign. Lengths in m, times in s, angles in rad; NaN where there is nothing to measure.
 
+    In a task campaign, the per-episode figures (place error, cycle time, planning, tracking) are those of every
+    pick and place of its trials (of its successful trials for the place error and the cycle time).
+
     Attributes:
         trials: Recorded trials.
         successes: Successful trials.
@@ -164,7 +167,12 @@ class CampaignSummary:
         success_rate_attempted: successes / (trials - failed_before_motion): the rate of the episodes in which
             the arm moved.
         success_rate_attempted_ci95: 95% Wilson interval of that rate.
-        by_object: The figures per object, by name (one entry when every trial has the same object).
+        by_object: The figures per object, by name (one entry when every trial has the same object); empty for a
+            task campaign (see ``failures_by_object``).
+        task_time_mean_s: A task campaign's mean simulated task time of its successful trials (s); NaN otherwise.
+        task_time_per_object_mean_s: The same per object of the task (s).
+        failures_by_object: Failed trials per object (its library name): a task's the object whose pick and place
+            failed (``"task"`` for a failure between them).
     """
 
     trials: int
@@ -193,6 +201,9 @@ class CampaignSummary:
     success_rate_attempted: float = math.nan
     success_rate_attempted_ci95: tuple[float, float] = (math.nan, math.nan)
     by_object: tuple[ObjectStats, ...] = ()
+    task_time_mean_s: float = math.nan
+    task_time_per_object_mean_s: float = math.nan
+    failures_by_object: dict[str, int] = dataclasses.field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready data (NaN becomes None)."""
@@ -227,11 +238,13 @@ def summarize(records: Sequence[TrialRecord], out_dir: str | Path = "OUT") -> Ca
     n = len(records)
     ok = [r for r in records if r.success]
     k = len(ok)
-    place = _finite(r.result.get("place_error_xy_m") for r in ok)
-    cycle = _finite(r.result.get("cycle_time_s") for r in ok)
-    plan = _finite(v for r in records for v in (r.result.get("plan_time_s") or {}).values())
-    tracking = _finite(r.result.get("tracking_error_max_rad") for r in records)
-    tcp_tracking = _finite(r.result.get("tcp_tracking_error_max_m") for r in records)
+    ok_episodes = [e for r in ok for e in episodes(r)]
+    all_episodes = [e for r in records for e in episodes(r)]
+    place = _finite(e.get("place_error_xy_m") for e in ok_episodes)
+    cycle = _finite(e.get("cycle_time_s") for e in ok_episodes)
+    plan = _finite(v for e in all_episodes for v in (e.get("plan_time_s") or {}).values())
+    tracking = _finite(e.get("tracking_error_max_rad") for e in all_episodes)
+    tcp_tracking = _finite(e.get("tcp_tracking_error_max_m") for e in all_episodes)
     wall = _finite(r.result.get("wall_time_s") for r in records)
 
     failed = sorted((r for r in records if not r.success), key=lambda r: r.trial)
@@ -255,10 +268,21 @@ def summarize(records: Sequence[TrialRecord], out_dir: str | Path = "OUT") -> Ca
         for r in failed
     )
     attempted = n - before
+    tasks = any(is_task(r) for r in records)
+    task_time = _finite(r.result.get("total_time_s") for r in ok if is_task(r))
+    per_object = _finite(r.result.get("total_time_s") / max(1, len(r.result.get("objects") or ()))
+                         for r in ok if is_task(r) and isinstance(r.result.get("total_time_s"), float))
+    by_failure: dict[str, int] = {}
+    for r in failed:
+        name = failed_object(r)
+        by_failure[name] = by_failure.get(name, 0) + 1
     return CampaignSummary(
+        task_time_mean_s=_stat(task_time, np.mean),
+        task_time_per_object_mean_s=_stat(per_object, np.mean),
+        failures_by_object=dict(sorted(by_failure.items(), key=lambda kv: (-kv[1], kv[0]))),
         success_rate_attempted=k / attempted if attempted else math.nan,
         success_rate_attempted_ci95=wilson_interval(k, attempted),
-        by_object=_by_object(records),
+        by_object=() if tasks else _by_object(records),
         trials=n,
         successes=k,
         success_rate=k / n if n else math.nan,
@@ -283,6 +307,30 @@ def summarize(records: Sequence[TrialRecord], out_dir: str | Path = "OUT") -> Ca
         failures=failure_groups,
         failed_trials=failed_trials,
     )
+
+
+def episodes(record: TrialRecord) -> list[dict[str, Any]]:
+    """The pick and places a trial ran, each as an ``EpisodeResult`` dict: the trial's own, or a task's picks."""
+    if is_task(record):
+        return [p for p in record.result.get("picks") or [] if isinstance(p, dict)]
+    return [record.result]
+
+
+def is_task(record: TrialRecord) -> bool:
+    """Whether the trial ran a task with several objects (its record is a ``TaskResult``)."""
+    return "order_policy" in record.result
+
+
+def failed_object(record: TrialRecord) -> str:
+    """The library name of the object a failed trial failed with: a task's failing object (its trailing ``_N``
+    dropped), ``"task"`` when the task failed between pick and places; the trial's object otherwise."""
+    if not is_task(record):
+        return object_name(record)
+    name = record.result.get("failure_object")
+    if not isinstance(name, str):
+        return "task"
+    base, _, tail = name.rpartition("_")
+    return base if base and tail.isdigit() else name
 
 
 def object_name(record: TrialRecord) -> str:
@@ -322,6 +370,9 @@ __all__ = [
     "FailureGroup",
     "ObjectStats",
     "RetryCount",
+    "episodes",
+    "failed_object",
+    "is_task",
     "normalize_reason",
     "object_name",
     "retries_of",
