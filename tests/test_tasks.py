@@ -287,3 +287,19 @@ def test_a_task_campaign_runs_and_summarizes_by_object(tmp_path: Path) -> None:
     assert 4.0 < s.task_time_mean_s < 20.0 and s.task_time_per_object_mean_s == pytest.approx(s.task_time_mean_s / 2)
     assert s.place_error_xy_rms_m < 0.003  # over the four picks
     assert not s.failures_by_object
+
+
+def test_a_carried_object_turned_over_is_carried_slower() -> None:
+    """The arm going from one IK branch to another turns the hand over on the way (the tcp's approach axis ~90
+    degrees from straight down): such a transport is run TURN_OVER_SLOWDOWN times slower; one that only turns
+    about the base keeps the hand down."""
+    from pickplace.motion.timing import TimingConfig, retime
+    from pickplace.task.arm import TURN_OVER_RAD, hand_turn_rad
+
+    robot = build(SceneConfig())
+    lift = np.array([3.477, -1.241, 0.893, -1.224, -1.571, 0.413])  # a ball lifted far out on +y
+    flipped = np.array([5.871, -2.105, -0.585, -2.022, 1.571, 0.713])  # above a spot far out on -y, turned over
+    turned = lift + np.array([-1.0, 0.0, 0.0, 0.0, 0.0, -1.0])  # the same arm shape turned about the base
+    timing = TimingConfig.ur5e()
+    assert hand_turn_rad(robot, retime(np.vstack([lift, flipped]), timing)) > TURN_OVER_RAD
+    assert hand_turn_rad(robot, retime(np.vstack([lift, turned]), timing)) < math.radians(1.0)

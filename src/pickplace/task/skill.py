@@ -608,9 +608,14 @@ class PickPlaceSkill:
         if lowest < scene.table_height_m - 0.01:
             raise PhaseFailed(Phase.RECOVER, f"the {name} fell off the table: it rests at {where}, "
                                              f"{scene.table_height_m - lowest:.3f} m below the table top")
-        if lowest > scene.table_height_m + 0.005:
-            raise PhaseFailed(Phase.RECOVER, f"the {name} is not resting on the table: its lowest point is "
-                                             f"{(lowest - scene.table_height_m) * 1e3:.0f} mm above it at {where} "
+        surface, what = scene.table_height_m, "the table"
+        if scene.bin is not None:
+            lo, hi = scene.bin.inner_box_xy_m
+            if np.all(obj.translation[:2] >= lo) and np.all(obj.translation[:2] <= hi):  # it fell into the bin
+                surface, what = scene.bin.floor_z_m(scene.table_height_m), "the bin's floor"
+        if lowest > surface + 0.005:
+            raise PhaseFailed(Phase.RECOVER, f"the {name} is not resting on {what}: its lowest point is "
+                                             f"{(lowest - surface) * 1e3:.0f} mm above it at {where} "
                                              "(it is stuck on something)")
         t0 = time.perf_counter()
         try:

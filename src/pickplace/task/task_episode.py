@@ -24,6 +24,7 @@ import pinocchio as pin
 
 from pickplace.errors import ConfigError
 from pickplace.grasping.targets import object_yaw, yaw_error
+from pickplace.robot import gripper
 from pickplace.robot.model import Robot, build
 from pickplace.task.arm import Arm
 from pickplace.task.episode import EpisodeConfig, EpisodeResult, _plain, _result, run_episode
@@ -41,7 +42,7 @@ log = logging.getLogger(__name__)
 #: repaired, an object not where the task wants it at the end).
 TASK_PHASE = "TASK"
 #: Most bin or buffer spots tried for one object whose pick cannot start at the first one.
-SPOTS_TRIED = 3
+SPOTS_TRIED = 5
 
 
 @dataclass(frozen=True)
@@ -262,8 +263,13 @@ def run_task(config: EpisodeConfig, seed: int = 0, *, record: bool = False, fram
 
 
 def _did_not_start(result: EpisodeResult) -> bool:
-    """Whether a pick and place failed before the arm moved, for want of a grasp or a place that reaches."""
-    return result.failure_phase == Phase.IDLE.value and result.failure_kind in _NOT_STARTED
+    """Whether a pick and place failed before the arm moved, for want of a grasp or a place that reaches, or of a
+    path to the grasp (planned before the first motion)."""
+    if result.failure_phase == Phase.IDLE.value and result.failure_kind in _NOT_STARTED:
+        return True
+    phases = [p for p, *_ in result.phase_timeline]
+    return (result.failure_phase == Phase.PLAN_APPROACH.value and result.failure_kind == "PlanningFailed"
+            and phases == [Phase.IDLE.value, Phase.PLAN_APPROACH.value])
 
 
 #: Failures of IDLE that leave everything as it was: no grasp or place reaches, or the chosen goal does not suit
@@ -336,6 +342,13 @@ class _TaskRun:
                             continue
                     skip.add(pick.name)
                     continue
+                if self._can_retry(pick.name, after):  # it rests where it can be picked again: the task goes on
+                    log.info("task: the %s's pick and place failed in %s (%s); it rests on %s, taking it again",
+                             pick.name, result.failure_phase, result.failure_reason, "the bin's floor"
+                             if self.planner.in_bin(pick.name, after[pick.name]) else "the table")
+                    if knocked and not self._repair(knocked, after):
+                        return
+                    continue
                 self.failure = (f"the {pick.name}'s pick and place failed in {result.failure_phase}: "
                                 f"{result.failure_reason}", pick.name, result.failure_phase,
                                 result.failure_kind or "PickPlaceError")
@@ -345,6 +358,23 @@ class _TaskRun:
             self.planner.placed(pick, after)
             if knocked and not self._repair(knocked, after):
                 return
+
+    def _can_retry(self, name: str, poses: dict[str, pin.SE3]) -> bool:
+        """Whether a failed pick and place can be taken again: tries are left, the hand is empty, and the object
+        rests (on the table, or on the bin's floor) within 5 mm of the surface, upright as it can be grasped."""
+        if self.count[name] >= self.task.max_picks_per_object:
+            return False
+        if np.any(gripper.pad_forces(self.robot, self.d) > 0.0):
+            return False
+        o, T = self.planner.objects[name], poses[name]
+        obs = self.measure.observers[name]
+        if float(np.linalg.norm(obs.object_velocity()[:3])) > 0.01:
+            return False
+        surface = self.world.table_height_m
+        if self.world.bin is not None and self.planner.in_bin(name, T):
+            surface = self.world.bin.floor_z_m(self.world.table_height_m)
+        upright = float(np.linalg.norm(pin.log3(T.rotation @ pin.rpy.rpyToMatrix(0.0, 0.0, -object_yaw(T.rotation)))))
+        return abs(bottom_z_m(o, T) - surface) <= 0.005 and upright < 0.1
 
     def _other_spot(self, pick: Pick, poses: dict[str, pin.SE3], excluded: list[tuple[float, float]]) -> Pick | None:
         """The pick with a spot not tried before (bin and buffer spots); None if no spot is left."""

@@ -78,8 +78,9 @@ class TaskConfig:
         knock_tolerance_rad: ... or turns more than this (rad).
         repair: A knocked object that was already done is picked and placed again (otherwise the task fails).
         max_picks_per_object: Most pick and places per object (buffer moves and repairs included).
-        spot_clearance_m: Gap a buffer spot or a spot in the bin keeps from every other object and from the bin's
-            walls (m): room for the fingers.
+        spot_clearance_m: Gap a buffer spot or a spot in the bin keeps from every other object (and its goal) and
+            from the bin's walls (m): room for the open fingers (the skill's IDLE checks the actual grasp there, and
+            another spot is tried if it does not fit).
     """
 
     kind: str = "place"
@@ -92,7 +93,7 @@ class TaskConfig:
     knock_tolerance_rad: float = 0.05
     repair: bool = True
     max_picks_per_object: int = 3
-    spot_clearance_m: float = 0.025
+    spot_clearance_m: float = 0.035
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -372,18 +373,20 @@ class TaskPlanner:
     def bin_spot(self, name: str, poses: Mapping[str, pin.SE3], exclude: list[tuple[float, float]] | None = None
                  ) -> Goal | None:
         """A free spot on the bin's floor for the object: clear of the walls and of what is in the bin by the spot
-        clearance, the one nearest the bin's corner nearest the robot and farthest along -y (the bin fills from
-        there); None if there is none."""
+        clearance, the one nearest the robot's base (the bin fills from its near corner outwards: far out, the arm
+        reaches a spot only with its elbow and wrist flipped, and a carried object slips while the hand turns
+        over to get there), with the object's yaw as it lies now (the wrist need not turn it on the way), or a
+        quarter turn from it where only that fits; None if there is none."""
         b = self.scene.bin
         assert b is not None
         lo, hi = b.inner_box_xy_m
         in_bin = [self._footprint_now(n, poses) for n in self.objects if n != name and self.in_bin(n, poses[n])]
-        spots = self._spots(name, lo, hi, 0.01, in_bin, (0.0, math.pi / 2), (lo, hi), [])
+        yaw_now = object_yaw(poses[name].rotation)  # as it lies (the hand need not turn it), else a quarter turn
+        spots = self._spots(name, lo, hi, 0.01, in_bin, (yaw_now, yaw_now + math.pi / 2), (lo, hi), [])
         spots = [s for s in spots if not any(math.hypot(s[0] - e[0], s[1] - e[1]) < 0.03 for e in exclude or [])]
         if not spots:
             return None
-        corner = np.array([lo[0], lo[1]]) if abs(lo[1]) > abs(hi[1]) else np.array([lo[0], hi[1]])
-        x, y, yaw = min(spots, key=lambda s: float(np.abs(np.array(s[:2]) - corner).sum()))
+        x, y, yaw = min(spots, key=lambda s: math.hypot(s[0], s[1]))
         return Goal((x, y), yaw, b.floor_z_m(self.scene.table_height_m), label="bin")
 
     def buffer_spot(self, name: str, poses: Mapping[str, pin.SE3], exclude: list[tuple[float, float]] | None = None
@@ -406,11 +409,11 @@ class TaskPlanner:
         lo, hi = np.maximum(table[0], [0.25, -0.40]), np.minimum(table[1], [0.60, 0.40])
         yaw_now = object_yaw(poses[name].rotation)
         spots = self._spots(name, lo, hi, 0.02, others, (yaw_now,), table, avoid)
-        spots = [s for s in spots if math.hypot(*s[:2]) >= 0.30
+        here = poses[name].translation[:2]
+        spots = [s for s in spots if math.hypot(*s[:2]) >= 0.30 and math.hypot(s[0] - here[0], s[1] - here[1]) > 0.05
                  and not any(math.hypot(s[0] - e[0], s[1] - e[1]) < 0.03 for e in exclude or [])]
         if not spots:
             return None
-        here = poses[name].translation[:2]
         x, y, yaw = min(spots, key=lambda s: math.hypot(s[0] - here[0], s[1] - here[1]))
         return Goal((x, y), yaw, scene.table_height_m, label="buffer")
 
