@@ -304,9 +304,10 @@ class TaskPlanner:
             return Pick(name, self._own_goal(name))
         if free:
             return Pick(free[0], self._own_goal(free[0]))
-        # every remaining object waits for another (a swap): park one on a buffer spot
-        for name in pending:
-            if name in skip or name in self.buffered:
+        # every remaining object waits for another (a swap): park one on a buffer spot (one parked already may move
+        # on to another spot, last: where it was parked, it kept another's grasp from fitting)
+        for name in sorted(pending, key=lambda n: n in self.buffered):
+            if name in skip:
                 continue
             spot = self.buffer_spot(name, poses)
             if spot is not None:
@@ -395,9 +396,9 @@ class TaskPlanner:
         object's goal, of the bin and of the wall, nearest to where it is; None if there is none."""
         scene = self.scene
         others = [self._footprint_now(n, poses) for n in self.objects if n != name]
-        for n, o in self.objects.items():
+        for n, o in self.objects.items():  # around another's goal, that one's open fingers need room as well
             if n != name and o.goal_xy_m is not None:
-                others.append(footprint(o.object, o.goal_xy_m, o.goal_yaw_rad))
+                others.append(_grown(footprint(o.object, o.goal_xy_m, o.goal_yaw_rad), GOAL_FINGER_ROOM_M))
         avoid = []
         if scene.bin is not None:
             avoid.append(scene.bin.outer_box_xy_m)
@@ -502,6 +503,20 @@ def random_task_scene(kind: str, n: int, rng: np.random.Generator, base: SceneCo
         base, object=first_obj.object, start_xy_m=first_obj.start_xy_m, start_yaw_rad=first_obj.start_yaw_rad,
         goal_xy_m=first_obj.goal_xy_m if first_obj.goal_xy_m is not None else base.goal_xy_m,
         goal_yaw_rad=first_obj.goal_yaw_rad, others=tuple(others[1:]), bin=bin_)
+
+
+#: Room a buffer spot leaves around another object's goal besides the spot clearance (m): the open fingers reach
+#: up to (84 mm - the object's width) / 2 plus their own thickness beyond an object set down there.
+GOAL_FINGER_ROOM_M = 0.02
+
+
+def _grown(polygon: np.ndarray, margin_m: float) -> np.ndarray:
+    """A convex polygon (N, 2) with every corner pushed ``margin_m`` further from its centroid (m): its edges move
+    out by up to that much (by about that much for a compact shape such as a box's footprint)."""
+    c = polygon.mean(axis=0)
+    d = polygon - c
+    n = np.linalg.norm(d, axis=1, keepdims=True)
+    return c + d * (1.0 + margin_m / np.maximum(n, 1e-9))
 
 
 class TaskStuck(PickPlaceError):
