@@ -26,14 +26,13 @@ import pinocchio as pin
 
 from pickplace.errors import CollisionError
 from pickplace.robot.model import (
-    BIN_FLOOR,
     SEEN_OBSTACLE_NAMES,
     Handles,
     Robot,
     add_object_geoms,
-    object_body_name,
     quiet_attach,
     scene_spec,
+    surface_geoms,
 )
 from pickplace.world.config import SceneConfig, check_range
 from pickplace.world.objects import ObjectConfig
@@ -159,13 +158,7 @@ class CollisionChecker:
         cls[m.geom_bodyid == table] = TABLE
         # Surfaces objects are set down on count as the table: the bin's floor, and the object the one in hand is
         # set on (a tower's top). The other objects, the bin's walls and the obstacles are the environment.
-        surfaces = [BIN_FLOOR] if self.robot.world_scene.bin is not None else []
-        if self.robot.scene.goal_support:
-            support = object_body_name(self.robot.world_scene, self.robot.scene.goal_support)
-            surfaces += [m.geom(int(g)).name for g in np.flatnonzero(
-                m.geom_bodyid == mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, support))]
-        for name in surfaces:
-            cls[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, name)] = TABLE
+        cls[surface_geoms(m, self.robot.world_scene, self.robot.scene)] = TABLE
         # Exactly one of the two objects takes part: the one resting in the world, or the one in the gripper.
         cls[m.geom_bodyid == h.object_body] = OFF if policy.object_held else OBJ
         cls[m.geom_bodyid == self._held_body] = OBJ if policy.object_held else OFF

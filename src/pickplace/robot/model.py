@@ -190,6 +190,17 @@ def object_body_name(scene: SceneConfig, name: str) -> str:
     return OBJECT if name == scene.object.name else name
 
 
+def surface_geoms(m: mujoco.MjModel, world: SceneConfig, scene: SceneConfig) -> np.ndarray:
+    """Ids of the geoms of ``m`` that objects are set down on besides the table: the bin's floor, and the object that
+    ``scene``'s object is set on (``goal_support``, a tower's top). ``world`` is the scene ``m`` was built from
+    (the checker's model has the same names, not the same ids)."""
+    ids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, BIN_FLOOR)] if world.bin is not None else []
+    if scene.goal_support:
+        body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, object_body_name(world, scene.goal_support))
+        ids += np.flatnonzero(m.geom_bodyid == body).tolist()
+    return np.array(ids, dtype=int)
+
+
 def _add_goal_marker(spec: mujoco.MjSpec, name: str, obj: ObjectConfig, xy: tuple[float, float], yaw: float,
                      z: float) -> None:
     """A translucent marker of the object's footprint (its bounds) at a goal, without contacts, and a site."""

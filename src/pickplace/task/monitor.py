@@ -12,7 +12,7 @@ import mujoco
 import numpy as np
 
 from pickplace.errors import GraspFailed, PickPlaceError
-from pickplace.robot.model import BIN_FLOOR, Robot, object_body_name
+from pickplace.robot.model import Robot, object_body_name, surface_geoms
 from pickplace.task.faults import FaultInjector
 from pickplace.task.observe import Observer, SimulatorObserver
 from pickplace.task.telemetry import TelemetryRecorder
@@ -82,11 +82,7 @@ class StepMonitor:
         for other in world.objects:  # every object of the world, then the one being picked
             body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, object_body_name(world, other.name))
             cls[m.geom_bodyid == body] = _OTHER
-        if world.bin is not None:  # a surface to set objects on, like the table
-            cls[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, BIN_FLOOR)] = _TABLE
-        if robot.scene.goal_support:  # the object the one in hand is set on (a tower's top)
-            support = object_body_name(world, robot.scene.goal_support)
-            cls[m.geom_bodyid == mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, support)] = _TABLE
+        cls[surface_geoms(m, world, robot.scene)] = _TABLE  # the bin's floor, a tower's top: like the table
         cls[h.object_geoms] = _OBJECT
         self.cls = cls
         self.allow_hand_object = False  # gripper/pads touching the object
@@ -122,12 +118,8 @@ class StepMonitor:
         lo, hi = min(a, b), max(a, b)
         if lo >= _TABLE:  # neither the robot nor the object: things resting on each other (a tower, the bin)
             return True
-        if hi == _OTHER:
-            if lo in (_ARM, _GRIPPER, _PAD):
-                return False
-            if lo == _OBJECT:
-                return not self.holding
-            return True
+        if hi == _OTHER:  # with the robot never; with the object only when it is not held
+            return lo == _OBJECT and not self.holding
         if hi == _OBJECT and lo in (_GRIPPER, _PAD):
             return self.allow_hand_object or self.object_falling
         if (lo, hi) == (_ARM, _OBJECT):
