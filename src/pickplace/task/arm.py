@@ -203,11 +203,12 @@ class Arm:
             com = self.T_tcp_object.act(self.held_com_m)
             accels = com_accelerations(self.robot, traj, com, gripper.finger_travel(self.robot, self.d))
             slowdown = slowdown_for_grip(accels, self.capacity)
-            tilt = hand_turn_rad(self.robot, traj)
-            if tilt > TURN_OVER_RAD and slowdown < TURN_OVER_SLOWDOWN:
-                log.info("%s: the hand turns %.0f deg on the way (the arm changes branch): slowed down %.1f times",
-                         name, math.degrees(tilt), TURN_OVER_SLOWDOWN)
-                slowdown = TURN_OVER_SLOWDOWN
+            if slowdown < TURN_OVER_SLOWDOWN:  # already slower otherwise: no need to look at the hand's turn
+                tilt = hand_turn_rad(self.robot, traj)
+                if tilt > TURN_OVER_RAD:
+                    log.info("%s: the hand turns %.0f deg on the way (the arm changes branch): slowed down %.1f "
+                             "times", name, math.degrees(tilt), TURN_OVER_SLOWDOWN)
+                    slowdown = TURN_OVER_SLOWDOWN
             if slowdown > 1.0:
                 traj = traj.slowed(slowdown)
                 log.info("%s: slowed down %.2f times so that the grip holds (%.3f s)", name, slowdown,

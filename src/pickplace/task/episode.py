@@ -135,7 +135,7 @@ class EpisodeConfig:
         if self.scene.others:
             out["objects"] = [_plain(_object_entry(o)) for o in self.scene.objects]
             del out["object"]
-            for key in ("start_xy_m", "start_yaw_rad", "goal_xy_m", "goal_yaw_rad"):
+            for key in _PLACEMENT_KEYS:  # each object's own, in its entry
                 out["scene"].pop(key, None)
         if self.scene.bin is not None:
             out["bin"] = _plain(dataclasses.asdict(self.scene.bin))

@@ -25,6 +25,7 @@ import pinocchio as pin
 from pickplace.errors import ConfigError
 from pickplace.grasping.targets import object_yaw, yaw_error
 from pickplace.robot import gripper
+from pickplace.robot.kinematics import rot_z
 from pickplace.robot.model import Robot, build
 from pickplace.task.arm import Arm
 from pickplace.task.episode import EpisodeConfig, EpisodeResult, _plain, _result, run_episode
@@ -89,6 +90,17 @@ class ObjectOutcome:
     yaw_error_rad: float
     z_error_m: float
     note: str = ""
+
+
+@dataclass(frozen=True)
+class _Failure:
+    """Why a task failed: the reason, the object concerned (or None), the failing pick's phase (None: between
+    picks, :data:`TASK_PHASE`) and the error's kind."""
+
+    reason: str
+    object: str | None
+    phase: str | None
+    kind: str
 
 
 @dataclass(frozen=True, eq=False)
@@ -245,12 +257,13 @@ def run_task(config: EpisodeConfig, seed: int = 0, *, record: bool = False, fram
     success = run.failure is None and all(o.ok for o in objects)
     failure = run.failure
     if failure is None and not success:
-        bad = [o for o in objects if not o.ok]
-        failure = (f"{bad[0].name}: {bad[0].note}", bad[0].name, None, "TaskIncomplete")
+        bad = next(o for o in objects if not o.ok)
+        failure = _Failure(f"{bad.name}: {bad.note}", bad.name, None, "TaskIncomplete")
     result = TaskResult(
         success=success, kind=task.kind, order_policy=task.order,
-        failure_reason=failure[0] if failure else None, failure_object=failure[1] if failure else None,
-        failure_phase=(failure[2] or TASK_PHASE) if failure else None, failure_kind=failure[3] if failure else None,
+        failure_reason=failure.reason if failure else None, failure_object=failure.object if failure else None,
+        failure_phase=(failure.phase or TASK_PHASE) if failure else None,
+        failure_kind=failure.kind if failure else None,
         seed=seed, order=tuple(run.order), picks=tuple(run.picks), pick_spans_s=tuple(run.spans),
         skipped=tuple(run.skipped),
         knocked=tuple(run.knocks), objects=objects, total_time_s=run.t,
@@ -296,7 +309,7 @@ class _TaskRun:
         self.knocks: list[Knock] = []
         self.time_per_object: dict[str, float] = {o.name: 0.0 for o in self.world.objects}
         self.count: dict[str, int] = dict.fromkeys(self.time_per_object, 0)
-        self.failure: tuple[str, str | None, str | None, str] | None = None
+        self.failure: _Failure | None = None
         self.loop_rng = np.random.default_rng([seed, 4])
 
     def run(self) -> None:
@@ -307,7 +320,7 @@ class _TaskRun:
             try:
                 pick = self.planner.next_pick(poses, skip)
             except TaskStuck as exc:
-                self.failure = (str(exc), None, None, "TaskStuck")
+                self.failure = _Failure(str(exc), None, None, "TaskStuck")
                 return
             if pick is None:
                 return
@@ -317,14 +330,14 @@ class _TaskRun:
                 continue
             pick = chosen
             if self.count[pick.name] >= self.task.max_picks_per_object:
-                self.failure = (f"the {pick.name} was picked {self.count[pick.name]} times (task."
+                self.failure = _Failure(f"the {pick.name} was picked {self.count[pick.name]} times (task."
                                 f"max_picks_per_object) and is still not done", pick.name, None, "TaskStuck")
                 return
             try:
                 view = _view(self.world, pick.name, poses[pick.name], pick)
             except ConfigError as exc:
-                self.failure = (f"the {pick.name} cannot be picked and placed from where it is: {exc}", pick.name,
-                                None, type(exc).__name__)
+                self.failure = _Failure(f"the {pick.name} cannot be picked and placed from where it is: {exc}",
+                                        pick.name, None, type(exc).__name__)
                 return
             result = self._run_pick(pick, view)
             after = self.measure.poses()
@@ -349,9 +362,9 @@ class _TaskRun:
                     if knocked and not self._repair(knocked, after):
                         return
                     continue
-                self.failure = (f"the {pick.name}'s pick and place failed in {result.failure_phase}: "
-                                f"{result.failure_reason}", pick.name, result.failure_phase,
-                                result.failure_kind or "PickPlaceError")
+                self.failure = _Failure(f"the {pick.name}'s pick and place failed in {result.failure_phase}: "
+                                        f"{result.failure_reason}", pick.name, result.failure_phase,
+                                        result.failure_kind or "PickPlaceError")
                 return
             skip.clear()
             spots_excluded.pop(pick.name, None)
@@ -373,7 +386,7 @@ class _TaskRun:
         surface = self.world.table_height_m
         if self.world.bin is not None and self.planner.in_bin(name, T):
             surface = self.world.bin.floor_z_m(self.world.table_height_m)
-        upright = float(np.linalg.norm(pin.log3(T.rotation @ pin.rpy.rpyToMatrix(0.0, 0.0, -object_yaw(T.rotation)))))
+        upright = float(np.linalg.norm(pin.log3(T.rotation @ rot_z(-object_yaw(T.rotation)))))
         return abs(bottom_z_m(o, T) - surface) <= 0.005 and upright < 0.1
 
     def _other_spot(self, pick: Pick, poses: dict[str, pin.SE3], excluded: list[tuple[float, float]]) -> Pick | None:
@@ -439,15 +452,11 @@ class _TaskRun:
             shift = float(np.linalg.norm(T1.translation - T0.translation))
             turn = float(np.linalg.norm(pin.log3(T0.rotation.T @ T1.rotation)))
             if shift > self.task.knock_tolerance_m or turn > self.task.knock_tolerance_rad:
-                was_done = self._was_done(name, before)
-                knock = Knock(len(self.picks) - 1, name, pick.name, shift, turn, was_done)
+                knock = Knock(len(self.picks) - 1, name, pick.name, shift, turn, self.planner.done(name, before))
                 log.warning("task: the %s moved %.1f mm and turned %.1f deg while the %s was handled", name,
                             shift * 1e3, math.degrees(turn), pick.name)
                 out.append(knock)
         return out
-
-    def _was_done(self, name: str, poses: dict[str, pin.SE3]) -> bool:
-        return name in self.planner.tower if self.task.kind == TaskKind.STACK else self.planner.done(name, poses)
 
     def _repair(self, knocked: list[Knock], after: dict[str, pin.SE3]) -> bool:
         """Re-queue knocked objects that were done (or fail the task if repairs are off); whether to go on."""
@@ -456,8 +465,9 @@ class _TaskRun:
             repaired = k.was_done and self.task.repair
             self.knocks.append(dataclasses.replace(k, repaired=repaired))
             if k.was_done and not self.task.repair:
-                self.failure = (f"the {k.name} was knocked ({k.shift_m * 1e3:.1f} mm, {math.degrees(k.turn_rad):.1f}"
-                                f" deg) while the {k.by} was handled", k.name, None, "ObjectKnocked")
+                self.failure = _Failure(f"the {k.name} was knocked ({k.shift_m * 1e3:.1f} mm, "
+                                        f"{math.degrees(k.turn_rad):.1f} deg) while the {k.by} was handled", k.name,
+                                        None, "ObjectKnocked")
                 return False
         if lost:
             log.info("task: %d level(s) of the tower fell; they will be stacked again", lost)
@@ -475,7 +485,7 @@ class _TaskRun:
                 T = poses[name]
                 o = objects[name]
                 if k == 0:
-                    ref_xy, R_ref = np.asarray(task.stack_xy_m), pin.rpy.rpyToMatrix(0.0, 0.0, task.stack_yaw_rad)
+                    ref_xy, R_ref = np.asarray(task.stack_xy_m), rot_z(task.stack_yaw_rad)
                     surface = self.world.table_height_m
                 else:
                     below = poses[tower[k - 1]]
@@ -504,7 +514,7 @@ class _TaskRun:
                 continue
             assert o.goal_xy_m is not None
             xy = float(np.hypot(*(T.translation[:2] - np.asarray(o.goal_xy_m))))
-            yaw = yaw_error(T.rotation, pin.rpy.rpyToMatrix(0.0, 0.0, o.goal_yaw_rad), o.object.yaw_period_rad)
+            yaw = yaw_error(T.rotation, rot_z(o.goal_yaw_rad), o.object.yaw_period_rad)
             z = bottom_z_m(o, T) - self.world.table_height_m
             ok = planner.done(name, poses) and abs(z) <= self.config.machine.place_tolerance_z_m
             out.append(ObjectOutcome(name, ok, xy, yaw, z, "" if ok else

@@ -34,6 +34,7 @@ import pinocchio as pin
 
 from pickplace.errors import ConfigError, PickPlaceError
 from pickplace.grasping.targets import object_yaw, yaw_error
+from pickplace.robot.kinematics import rot_z
 from pickplace.world.config import (
     BinConfig,
     SceneConfig,
@@ -222,7 +223,7 @@ class TaskPlanner:
         if self.task.kind == TaskKind.PLACE:
             assert o.goal_xy_m is not None
             xy = float(np.hypot(*(T.translation[:2] - np.asarray(o.goal_xy_m))))
-            R_goal = pin.rpy.rpyToMatrix(0.0, 0.0, o.goal_yaw_rad)
+            R_goal = rot_z(o.goal_yaw_rad)
             return xy <= self.tol_xy and abs(yaw_error(T.rotation, R_goal, o.object.yaw_period_rad)) <= self.tol_yaw
         if self.task.kind == TaskKind.CLEAR:
             return self.in_bin(name, T)
