@@ -220,9 +220,7 @@ def summary_rows(summary: CampaignSummary) -> list[tuple[str, str]]:
 
 
 def _task_rows(summary: CampaignSummary) -> list[tuple[str, str]]:
-    """The rows of a task campaign: task time, and failures by object."""
-    if not math.isfinite(summary.task_time_mean_s) and not summary.failures_by_object:
-        return []
+    """The rows of a task campaign: task time, and failures by object (none for a campaign without either)."""
     rows = []
     if math.isfinite(summary.task_time_mean_s):
         rows.append(("task time mean / per object (successes, simulated)",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
+from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -272,10 +273,7 @@ def summarize(records: Sequence[TrialRecord], out_dir: str | Path = "OUT") -> Ca
     task_time = _finite(r.result.get("total_time_s") for r in ok if is_task(r))
     per_object = _finite(r.result.get("total_time_s") / max(1, len(r.result.get("objects") or ()))
                          for r in ok if is_task(r) and isinstance(r.result.get("total_time_s"), float))
-    by_failure: dict[str, int] = {}
-    for r in failed:
-        name = failed_object(r)
-        by_failure[name] = by_failure.get(name, 0) + 1
+    by_failure = Counter(failed_object(r) for r in failed)
     return CampaignSummary(
         task_time_mean_s=_stat(task_time, np.mean),
         task_time_per_object_mean_s=_stat(per_object, np.mean),
