@@ -30,6 +30,7 @@ if TYPE_CHECKING:
     from pickplace.task.episode import EpisodeConfig, EpisodeResult
     from pickplace.task.faults import FaultConfig
     from pickplace.task.task_episode import TaskResult
+    from pickplace.task.tasks import TaskConfig
     from pickplace.task.telemetry import Telemetry
 
 EXIT_FAILURE = 1
@@ -343,24 +344,31 @@ def task_config_from_args(args: argparse.Namespace, config: EpisodeConfig) -> Ep
     """The config of ``run --task``: the config's [task] and [[objects]], or random objects, with the flags on top."""
     import numpy as np
 
-    from pickplace.task.tasks import TaskConfig, random_task_scene
+    from pickplace.task.tasks import random_task_scene
+
+    task = _task_from_flags(args, config)
+    if args.objects is not None or (config.task is None and not config.scene.others):  # else: its [[objects]]
+        n = args.objects if args.objects is not None else 3
+        scene = random_task_scene(task.kind, n, np.random.default_rng([args.seed, 7]), base=config.scene)
+    else:
+        scene = _with_bin(task, config.scene)
+    return dataclasses.replace(config, scene=scene, task=task)
+
+
+def _task_from_flags(args: argparse.Namespace, config: EpisodeConfig) -> TaskConfig:
+    """The config's [task], or a new one of kind ``--task``, changed by ``--task`` and ``--order``."""
+    from pickplace.task.tasks import TaskConfig
 
     task = config.task if config.task is not None else TaskConfig(kind=args.task)
-    changes: dict[str, object] = {}
-    if args.task is not None:
-        changes["kind"] = args.task
-    if args.order is not None:
-        changes["order"] = args.order
-    task = dataclasses.replace(task, **changes)
-    scene = config.scene
-    if args.objects is not None or (config.task is None and not scene.others):  # else: the config's [[objects]]
-        n = args.objects if args.objects is not None else 3
-        scene = random_task_scene(task.kind, n, np.random.default_rng([args.seed, 7]), base=scene)
-    elif task.kind == "clear" and scene.bin is None:
-        from pickplace.world.config import BinConfig
+    return dataclasses.replace(task, **{k: v for k, v in (("kind", args.task), ("order", args.order))
+                                        if v is not None})
 
-        scene = dataclasses.replace(scene, bin=BinConfig())
-    return dataclasses.replace(config, scene=scene, task=task)
+
+def _with_bin(task: TaskConfig, scene: SceneConfig) -> SceneConfig:
+    """The scene, with the default bin for a clear task if it has none."""
+    from pickplace.world.config import BinConfig
+
+    return dataclasses.replace(scene, bin=BinConfig()) if task.kind == "clear" and scene.bin is None else scene
 
 
 def print_task(result: TaskResult, console: Console) -> None:
@@ -646,17 +654,8 @@ def campaign_from_args(args: argparse.Namespace) -> CampaignConfig:
     if args.no_randomize:
         spec = RandomizationSpec.off()
     if args.task is not None or base.task is not None:
-        from pickplace.task.tasks import TaskConfig
-
-        task = base.task if base.task is not None else TaskConfig(kind=args.task)
-        task = dataclasses.replace(task, **{k: v for k, v in (("kind", args.task), ("order", args.order))
-                                            if v is not None})
-        scene = base.scene
-        if task.kind == "clear" and scene.bin is None:
-            from pickplace.world.config import BinConfig
-
-            scene = dataclasses.replace(scene, bin=BinConfig())
-        base = dataclasses.replace(base, scene=scene, task=task)
+        task = _task_from_flags(args, base)
+        base = dataclasses.replace(base, scene=_with_bin(task, base.scene), task=task)
         if args.objects is not None:
             spec = dataclasses.replace(spec, task_objects=(args.objects, args.objects))
     elif args.objects is not None or args.order is not None:
