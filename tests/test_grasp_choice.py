@@ -138,3 +138,59 @@ def test_solve_line_follows_the_branch_and_reports_where_it_fails(robot: Robot) 
     with pytest.raises(UnreachableTarget, match=r"in collision 0\.110 of 0\.150 m along") as info:
         solve_line(robot, target, start, "grasp", is_valid=above_floor)
     assert info.value.q is not None and not above_floor(info.value.q)
+
+
+def _into_the_bin(yaw_rad: float) -> Robot:
+    """A can lying far out on +y, to be set in the default bin far round the base on -y."""
+    from pickplace.world.config import BinConfig
+
+    base, bin_ = SceneConfig(), BinConfig()
+    return build(dataclasses.replace(base, object=library_object("soda_can_lying"), start_xy_m=(0.382, 0.378),
+                                     start_yaw_rad=-0.41, goal_xy_m=(0.54, -0.37), goal_yaw_rad=yaw_rad, bin=bin_,
+                                     goal_z_m=bin_.floor_z_m(base.table_height_m)))
+
+
+def test_ik_branch_flips_exactly_at_the_singularities(robot: Robot) -> None:
+    from pickplace.robot.kinematics import frame_jacobian, ik_branch
+
+    data = robot.pin.createData()
+    q = np.array(robot.home_q, dtype=float)
+
+    def branch(q: np.ndarray) -> tuple[int, int, int]:
+        return ik_branch(frame_jacobian(robot.pin, data, robot.pin_q(q), robot.pin_tcp_frame), q)
+
+    home = branch(q)
+    flipped = q.copy()
+    flipped[4] = -q[4]  # the wrist through 0: nothing else changes
+    assert branch(flipped) == (home[0], home[1], -home[2])
+    # the shoulder's sign is that of the wrist's reach in the arm's plane (UR5e DH: a2, a3, d5), the elbow's sin(q3)
+    a2, a3, d5 = -0.425, -0.3922, 0.0997
+    rng = np.random.default_rng(3)
+    for q in rng.uniform(-3.0, 3.0, (50, 6)):
+        reach = a2 * np.cos(q[1]) + a3 * np.cos(q[1] + q[2]) + d5 * np.sin(q[1] + q[2] + q[3])
+        if min(abs(reach), abs(np.sin(q[2])), abs(np.sin(q[4]))) < 1e-3:
+            continue  # too near a singularity to call
+        assert branch(q) == (int(np.sign(reach)), int(np.sign(np.sin(q[2]))), int(np.sign(np.sin(q[4]))))
+    # at the wrist's singularity the tool axis is horizontal: a wrist flip turns the hand on its side
+    for q5 in (0.0, np.pi):
+        q_sing = q.copy()
+        q_sing[4] = q5
+        T = frame_pose(robot.pin, data, robot.pin_q(q_sing), robot.pin_tcp_frame)
+        assert abs(T.rotation[2, 2]) < 1e-9
+
+
+@pytest.mark.parametrize("yaw_rad", [-0.41, 1.16])
+def test_a_far_place_is_reached_keeping_the_carried_object_upright(yaw_rad: float) -> None:
+    # At yaw 1.16 the first grasp's preplace (the lowest clear one) lies only on the flipped branch: the lift's
+    # branch puts the upper arm within the planner's margin of the table. Another grasp keeps the branch.
+    from pickplace.grasping.grip import TURN_OVER_RAD, carried_tilt_rad, joint_line
+    from pickplace.robot.kinematics import frame_jacobian, ik_branch
+
+    robot = _into_the_bin(yaw_rad)
+    configs = solve_grasp_configurations(robot, clearance_m=0.02, turn_over=False)
+    data = robot.pin.createData()
+    lift, pre = configs.lift.q, configs.preplace.q
+    branches = [ik_branch(frame_jacobian(robot.pin, data, robot.pin_q(q), robot.pin_tcp_frame), q)
+                for q in (lift, pre)]
+    assert branches[0] == branches[1]
+    assert carried_tilt_rad(robot, joint_line(lift, pre)) <= TURN_OVER_RAD

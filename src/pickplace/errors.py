@@ -75,6 +75,11 @@ class UnreachableTarget(PickPlaceError):
         )
 
 
+class TurnsOver(UnreachableTarget):
+    """A target reached while an object is carried is reachable only by tilting the object on its side on the
+    way (:func:`~pickplace.grasping.grip.carried_tilt_rad`): the arm must change IK branch to get there."""
+
+
 class CollisionError(PickPlaceError):
     """A configuration that must be collision-free is in collision.
 

@@ -16,7 +16,9 @@ object beside one, is rejected here, before the arm moves, and the next grasp is
 
 from __future__ import annotations
 
+import dataclasses
 import functools
+import logging
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -25,8 +27,8 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from pickplace.errors import UnreachableTarget
-from pickplace.grasping.grip import GripCapacity, grip_capacity
+from pickplace.errors import TurnsOver, UnreachableTarget
+from pickplace.grasping.grip import TURN_OVER_RAD, GripCapacity, carried_tilt_rad, grip_capacity, joint_line
 from pickplace.grasping.synthesis import GraspCandidate, RankWeights, rank, synthesize, world_candidates
 from pickplace.grasping.targets import (
     CLEARANCE_M,
@@ -41,9 +43,11 @@ from pickplace.grasping.targets import (
 from pickplace.motion.collision import CollisionChecker, CollisionPolicy
 from pickplace.robot.gripper import GripperGeometry
 from pickplace.robot.ik import IKConfig, IKResult, solve_ik, solve_line
-from pickplace.robot.kinematics import frame_pose, rot_z
+from pickplace.robot.kinematics import frame_jacobian, frame_pose, ik_branch, rot_z
 from pickplace.robot.model import Robot
 from pickplace.world.objects import ObjectConfig
+
+log = logging.getLogger(__name__)
 
 #: Most grasps tried (in ranked order) before the object is declared out of reach.
 MAX_GRASPS = 64
@@ -153,8 +157,14 @@ def solve_grasp_configurations(
     max_grasps: int = MAX_GRASPS,
     retreat_m: float = RETREAT_M,
     safety_factor: float | None = None,
+    turn_over: bool = True,
 ) -> GraspConfigurations:
     """Targets for the scene's object and goal, solved to joint configurations with the first grasp that works.
+
+    A grasp whose preplace the arm reaches only on another IK branch than its lift's would tilt the object on its
+    side on the way there (:data:`~pickplace.grasping.grip.TURN_OVER_RAD`, measured along the straight joint
+    line between the two): every grasp is tried with the object kept upright first, and such a grasp is taken only
+    when none keeps it upright and ``turn_over`` allows it.
 
     Args:
         robot: The models.
@@ -171,11 +181,15 @@ def solve_grasp_configurations(
         retreat_m: How far the tcp backs off from the place after the release (m).
         safety_factor: If given, grasps whose pads cannot hold the object's (believed) weight with this margin
             are skipped (:mod:`pickplace.grasping.grip`): a narrow grasp squeezes less.
+        turn_over: Whether a grasp that turns the hand over on the way to the place may be taken, as a last
+            resort (a caller with other places to try says no).
 
     Raises:
         CannotHold: ``safety_factor`` is given and no grasp's pads can hold the object (the strongest is named).
         UnreachableTarget: no grasp reaches every target collision free (the first grasp's failure is named),
             or none fits the gripper and clears the table where the object rests.
+        TurnsOver: ``turn_over`` is False and the first grasp reaches the place only by turning the hand over
+            (and no other grasp reaches it at all).
     """
     T_world_object = start_pose(robot) if T_world_object is None else T_world_object
     geom = GripperGeometry.measure(robot)
@@ -187,17 +201,29 @@ def solve_grasp_configurations(
     if not grasps:
         raise UnreachableTarget("grasp", f"no grasp of the {robot.scene.object.name} fits the gripper and clears "
                                          "the table where it rests")
-    chain = _Chain(robot, ik_config, world, clearance_m, retreat_m)
     first_error: UnreachableTarget | None = None
-    for tried, grasp in enumerate(grasps, start=1):
-        targets = grasp_targets(robot.scene, T_world_object, grasp.T_object_tcp, grasp.width_m, T_home)
-        held = geom.contact_travel_m(grasp.width_m)
-        try:
-            targets, results = chain.solve(targets, held)
-        except UnreachableTarget as exc:
-            first_error = first_error or exc
-            continue
-        return GraspConfigurations(targets, *results, held_finger_m=held, chosen=grasp, grasps_tried=tried)
+    turning: list[tuple[int, GraspCandidate]] = []  # grasps that reach the place only by turning the hand over
+    for upright in (True, False):
+        chain = _Chain(robot, ik_config, world, clearance_m, retreat_m, upright)
+        tries = list(enumerate(grasps, start=1)) if upright else turning
+        for tried, grasp in tries:
+            targets = grasp_targets(robot.scene, T_world_object, grasp.T_object_tcp, grasp.width_m, T_home)
+            held = geom.contact_travel_m(grasp.width_m)
+            try:
+                targets, results = chain.solve(targets, held)
+            except TurnsOver as exc:
+                first_error = first_error or exc
+                turning.append((tried, grasp))
+                continue
+            except UnreachableTarget as exc:
+                first_error = first_error or exc
+                continue
+            if not upright:
+                log.info("grasp %d reaches the place only by tilting the object on its side on the way (another IK "
+                         "branch); no grasp keeps it upright", tried)
+            return GraspConfigurations(targets, *results, held_finger_m=held, chosen=grasp, grasps_tried=tried)
+        if not turn_over or not turning:
+            break
     assert first_error is not None
     if len(grasps) == 1:
         raise first_error
@@ -270,9 +296,11 @@ class _Chain:
     """
 
     def __init__(self, robot: Robot, ik_config: IKConfig | None, world: mujoco.MjData | None, clearance_m: float,
-                 retreat_m: float) -> None:
+                 retreat_m: float, upright: bool = False) -> None:
         self.robot, self.ik, self.world, self.clearance_m, self.retreat_m = robot, ik_config, world, clearance_m, \
             retreat_m
+        self.upright = upright
+        self._data = robot.pin.createData()
         # Built once and re-aimed per grasp: the held object's pose and the fingers' opening change, the object
         # at the goal moves with the grasp's place orientation.
         self.above = self._checker(CollisionPolicy(margin_m=clearance_m))
@@ -307,10 +335,14 @@ class _Chain:
         first: UnreachableTarget | None = None
         for h in _raise_steps(CLEARANCE_M):  # the preplace: the lowest that is clear
             try:
-                preplace = self._point("preplace", raised(targets.place, float(h)), lift.q, carry, held_m)
+                preplace = self._point("preplace", raised(targets.place, float(h)), lift.q, carry, held_m,
+                                       upright_from=lift.q if self.upright else None)
             except UnreachableTarget as exc:
-                if "collision" not in exc.reason:  # out of reach: higher is no better
-                    raise
+                if not isinstance(exc, TurnsOver) and "collision" not in exc.reason:  # out of reach: higher is no
+                    if first is None:  # better
+                        raise
+                    raise type(first)(first.target, f"{first.reason} (and out of reach higher)",
+                                      first.position_error_m, first.orientation_error_rad, first.q) from None
                 first = first or exc
                 continue
             preplace_m = float(h)
@@ -331,15 +363,49 @@ class _Chain:
         return pre, self._line("grasp", targets.grasp, pre.q, self.approach)
 
     def _point(self, name: str, target: pin.SE3, q0: np.ndarray, checker: CollisionChecker,
-               finger_m: float = 0.0) -> IKResult:
-        """A target reached by a planned path: IK with restarts, checked."""
+               finger_m: float = 0.0, upright_from: np.ndarray | None = None) -> IKResult:
+        """A target reached by a planned path: IK with restarts, checked.
+
+        With ``upright_from`` (a configuration carrying the object), the solution must keep the object upright on
+        the way from there (:meth:`_upright`): if the first one does not, IK from ``q0`` and from ``q0`` with the
+        shoulder turned to face the target looks for one that does.
+
+        Raises:
+            UnreachableTarget: no collision-free solution.
+            TurnsOver: there is one, but the object would be turned over on the way to it.
+        """
         try:
-            return solve_ik(self.robot, target, q0, name, self.ik, checker.is_valid, finger_m)
+            result = solve_ik(self.robot, target, q0, name, self.ik, checker.is_valid, finger_m)
         except UnreachableTarget as exc:
             if "collision" not in exc.reason:
                 raise
             q = solve_ik(self.robot, target, q0, name, self.ik, None, finger_m).q
             raise _naming(exc, checker, q) from None
+        if upright_from is None or self._upright(upright_from, result.q):
+            return result
+        once = dataclasses.replace(self.ik or IKConfig(), restarts=0)
+        for seed in (q0, _facing(self.robot, q0, target)):
+            try:
+                return solve_ik(self.robot, target, seed, name, once,
+                                lambda q: self._upright(upright_from, q) and checker.is_valid(q), finger_m)
+            except UnreachableTarget:
+                continue
+        tilt = carried_tilt_rad(self.robot, joint_line(upright_from, result.q))
+        raise TurnsOver(name, f"reachable collision free only on another IK branch than the lift's: the object "
+                              f"would tilt {math.degrees(tilt):.0f} deg on the straight joint line there",
+                        q=result.q)
+
+    def _upright(self, q_from: np.ndarray, q: np.ndarray) -> bool:
+        """Whether the arm carries the object from ``q_from`` to ``q`` on one IK branch
+        (:func:`~pickplace.robot.kinematics.ik_branch`) and without tilting it more than :data:`TURN_OVER_RAD`
+        on the straight joint line between them."""
+        if self._branch(q_from) != self._branch(q):
+            return False
+        return carried_tilt_rad(self.robot, joint_line(q_from, q)) <= TURN_OVER_RAD
+
+    def _branch(self, q: np.ndarray) -> tuple[int, int, int]:
+        robot = self.robot
+        return ik_branch(frame_jacobian(robot.pin, self._data, robot.pin_q(q), robot.pin_tcp_frame), q)
 
     def _line(self, name: str, target: pin.SE3, q0: np.ndarray, checker: CollisionChecker,
               finger_m: float = 0.0) -> IKResult:
@@ -368,8 +434,17 @@ class _Chain:
         raise _raised_error(_naming(UnreachableTarget(name, "in collision at the end of the rise"), end, result.q))
 
 
+def _facing(robot: Robot, q: np.ndarray, target: pin.SE3) -> np.ndarray:
+    """``q`` with the shoulder pan turned by the target's bearing from the tcp's at ``q`` (about the base's z)."""
+    p = frame_pose(robot.pin, robot.pin.createData(), robot.pin_q(q), robot.pin_tcp_frame).translation
+    t = target.translation
+    out = np.array(q, dtype=float)
+    out[0] += math.remainder(math.atan2(t[1], t[0]) - math.atan2(p[1], p[0]), 2 * math.pi)
+    return out
+
+
 def _raised_error(exc: UnreachableTarget) -> UnreachableTarget:
-    return UnreachableTarget(exc.target, f"{exc.reason} (also raised up to {MAX_RAISE_M:.2f} m)",
+    return type(exc)(exc.target, f"{exc.reason} (also raised up to {MAX_RAISE_M:.2f} m)",
                              exc.position_error_m, exc.orientation_error_rad, exc.q)
 
 

@@ -7,6 +7,8 @@ the frame's origin (Pinocchio's ``LOCAL_WORLD_ALIGNED``), so ``[v; w] = J @ qd``
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pinocchio as pin
 
@@ -66,6 +68,21 @@ def rot_z(yaw: float) -> np.ndarray:
     """Rotation matrix (3, 3) of ``yaw`` rad about z."""
     c, s = np.cos(yaw), np.sin(yaw)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def ik_branch(J: np.ndarray, q: np.ndarray) -> tuple[int, int, int]:
+    """Which of the UR arm's eight IK branches the configuration ``q`` (6,) (rad) is on, from its 6 x 6 Jacobian
+    ``J`` there (:func:`frame_jacobian`, at any frame rigid with the flange): ``(shoulder, elbow, wrist)``, each
+    +1 or -1.
+
+    The Jacobian's determinant of this kinematic structure is ``a2 a3 sin(q3) sin(q5) s(q)``, ``s`` the wrist's
+    reach from the shoulder's axis in the arm's plane; each factor changes sign exactly at one of the three
+    singularities (shoulder, elbow stretched, wrist 1 and 3 aligned) that a path must cross to change branch.
+    """
+    elbow = 1 if math.sin(float(q[2])) >= 0.0 else -1
+    wrist = 1 if math.sin(float(q[4])) >= 0.0 else -1
+    shoulder = (1 if np.linalg.det(J[:, :6]) >= 0.0 else -1) * elbow * wrist
+    return shoulder, elbow, wrist
 
 
 def wrap_to_pi(angle: np.ndarray | float) -> np.ndarray | float:

@@ -20,7 +20,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from pickplace.grasping.grip import GripCapacity, com_accelerations, slowdown_for_grip
+from pickplace.grasping.grip import TURN_OVER_RAD, GripCapacity, carried_tilt_rad, com_accelerations, slowdown_for_grip
 from pickplace.grasping.targets import LIFT_STEP_M, MAX_RAISE_M
 from pickplace.motion import control
 from pickplace.motion.collision import CollisionChecker, CollisionPolicy
@@ -30,7 +30,6 @@ from pickplace.motion.planning import PlannerConfig, plan
 from pickplace.motion.timing import TimingConfig, Trajectory, retime
 from pickplace.robot import gripper
 from pickplace.robot.ik import IKResult
-from pickplace.robot.kinematics import frame_pose
 from pickplace.robot.model import Robot
 from pickplace.task.faults import FaultConfig, FaultInjector
 from pickplace.task.monitor import StepMonitor
@@ -41,21 +40,17 @@ from pickplace.task.telemetry import TelemetryRecorder
 log = logging.getLogger(__name__)
 
 
-#: A carried object's path on which the tcp's approach axis turns more than this from where it starts (rad)...
-TURN_OVER_RAD = math.radians(45.0)
-#: ... is run this many times slower than time-optimal. The grip model (:func:`slowdown_for_grip`) bounds the
-#: object's linear acceleration only; measured on a 58 g ball held at 40 N, a transport that turns the hand over
-#: (the arm going from one IK branch to another) crept it 3.0 mm in the grip at full speed, 2.5 mm at half speed
-#: and 1.3 mm at a quarter (the slip check's tolerance is 3 mm).
+#: A carrying trajectory that tilts the object more than :data:`~pickplace.grasping.grip.TURN_OVER_RAD` is run
+#: this many times slower than time-optimal: the grip model (:func:`slowdown_for_grip`) bounds the object's linear
+#: acceleration only, and a third of the speed cut the creep of a turned-over ball from 3.0 to 1.3 mm.
 TURN_OVER_SLOWDOWN = 3.0
 
 
 def hand_turn_rad(robot: Robot, traj: Trajectory, dt_s: float = 0.02) -> float:
-    """Largest angle (rad) between the tcp's approach axis along a trajectory (every ``dt_s``) and at its start."""
-    model, data, fid = robot.pin, robot.pin.createData(), robot.pin_tcp_frame
+    """Largest tilt (rad) of a carried object along a trajectory (every ``dt_s``) from how it is held at its start
+    (:func:`~pickplace.grasping.grip.carried_tilt_rad`)."""
     qs, _, _ = traj.sample_many(np.arange(0.0, traj.duration_s + dt_s, dt_s))
-    axes = np.array([frame_pose(model, data, robot.pin_q(q), fid).rotation[:, 2] for q in qs])
-    return float(np.max(np.arccos(np.clip(axes @ axes[0], -1.0, 1.0))))
+    return carried_tilt_rad(robot, qs)
 
 
 class Arm:
@@ -206,7 +201,7 @@ class Arm:
             if slowdown < TURN_OVER_SLOWDOWN:  # already slower otherwise: no need to look at the hand's turn
                 tilt = hand_turn_rad(self.robot, traj)
                 if tilt > TURN_OVER_RAD:
-                    log.info("%s: the hand turns %.0f deg on the way (the arm changes branch): slowed down %.1f "
+                    log.info("%s: the object tilts %.0f deg on the way (the arm changes branch): slowed down %.1f "
                              "times", name, math.degrees(tilt), TURN_OVER_SLOWDOWN)
                     slowdown = TURN_OVER_SLOWDOWN
             if slowdown > 1.0:

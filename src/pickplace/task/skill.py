@@ -77,14 +77,17 @@ class PickPlaceSkill:
     Args:
         arm: The arm to move (its simulation, controllers, monitor and record).
         ik: IK settings.
+        turn_over: Whether a grasp that reaches the place only by turning the hand over on the way (another wrist
+            branch) may be taken when no grasp keeps the wrist's branch (a task with other spots to try says no:
+            the pick then fails in IDLE, before the arm moves).
 
     Attributes:
         out: The record (the arm's).
         configs: The targets of the grasp in use, solved to joint configurations (after IDLE).
     """
 
-    def __init__(self, arm: Arm, ik: IKConfig) -> None:
-        self.arm = arm
+    def __init__(self, arm: Arm, ik: IKConfig, turn_over: bool = True) -> None:
+        self.arm, self.turn_over = arm, turn_over
         self.robot, self.d, self.cfg, self.ik = arm.robot, arm.d, arm.cfg, ik
         self.monitor, self.out = arm.monitor, arm.out
         self.observer = arm.observer  # everything the skill knows about the object comes through it
@@ -138,7 +141,7 @@ class PickPlaceSkill:
         return solve_grasp_configurations(self.robot, self.ik, T_world_object, self.observer.world(),
                                           self.cfg.planning_margin_m,
                                           grasps=grasps, retreat_m=self.cfg.retract_height_m,
-                                          safety_factor=self.cfg.grip_safety_factor)
+                                          safety_factor=self.cfg.grip_safety_factor, turn_over=self.turn_over)
 
     def _adopt(self, configs: GraspConfigurations) -> None:
         """Take these targets, after checking that their grip can hold the object (:class:`CannotHold` if not)."""

@@ -42,6 +42,10 @@ log = logging.getLogger(__name__)
 #: The failure phase of a task that failed between its pick and places (no pick could start, a knocked object not
 #: repaired, an object not where the task wants it at the end).
 TASK_PHASE = "TASK"
+#: Goals the task planner chooses (any free spot of their kind will do), not the task's own: a pick to one is
+#: refused (fails in IDLE) if it would turn the object over on the way, and another spot is tried, up to
+#: ``SPOTS_TRIED``; then the spots again, turning allowed (slowed down: :data:`~pickplace.task.arm.TURN_OVER_SLOWDOWN`).
+SPOT_LABELS = ("bin", "buffer")
 #: Most bin or buffer spots tried for one object whose pick cannot start at the first one.
 SPOTS_TRIED = 5
 
@@ -287,7 +291,7 @@ def _did_not_start(result: EpisodeResult) -> bool:
 
 #: Failures of IDLE that leave everything as it was: no grasp or place reaches, or the chosen goal does not suit
 #: the object (a spot the planner chose on the bin's wall).
-_NOT_STARTED = ("UnreachableTarget", "ConfigError", "InsideObstacle")
+_NOT_STARTED = ("UnreachableTarget", "TurnsOver", "ConfigError", "InsideObstacle")
 
 
 class _TaskRun:
@@ -311,6 +315,8 @@ class _TaskRun:
         self.count: dict[str, int] = dict.fromkeys(self.time_per_object, 0)
         self.failure: _Failure | None = None
         self.loop_rng = np.random.default_rng([seed, 4])
+        #: Objects whose spots may be reached by turning them over (none of ``SPOTS_TRIED`` spots kept them upright)
+        self.turn_over: set[str] = set()
 
     def run(self) -> None:
         skip: set[str] = set()
@@ -348,10 +354,16 @@ class _TaskRun:
                     self.skipped.append(f"{pick.name} -> {pick.goal.label}: {result.failure_reason}")
                     log.info("task: the %s cannot start (%s); trying another", pick.name, result.failure_reason)
                     self.planner.buffered.discard(pick.name)
-                    if pick.goal.label in ("bin", "buffer"):
+                    if pick.goal.label in SPOT_LABELS:
                         excluded = spots_excluded.setdefault(pick.name, [])
                         excluded.append(pick.goal.xy_m)
                         if len(excluded) < SPOTS_TRIED:
+                            continue
+                        if pick.name not in self.turn_over:  # no spot keeps it upright: the spots again, turning
+                            log.info("task: no spot keeps the %s upright on the way; trying them turning it",
+                                     pick.name)
+                            self.turn_over.add(pick.name)
+                            excluded.clear()
                             continue
                     skip.add(pick.name)
                     continue
@@ -368,6 +380,7 @@ class _TaskRun:
                 return
             skip.clear()
             spots_excluded.pop(pick.name, None)
+            self.turn_over.discard(pick.name)
             self.planner.placed(pick, after)
             if knocked and not self._repair(knocked, after):
                 return
@@ -391,7 +404,7 @@ class _TaskRun:
 
     def _other_spot(self, pick: Pick, poses: dict[str, pin.SE3], excluded: list[tuple[float, float]]) -> Pick | None:
         """The pick with a spot not tried before (bin and buffer spots); None if no spot is left."""
-        if not excluded or pick.goal.label not in ("bin", "buffer"):
+        if not excluded or pick.goal.label not in SPOT_LABELS:
             return pick
         finder = self.planner.bin_spot if pick.goal.label == "bin" else self.planner.buffer_spot
         goal = finder(pick.name, poses, exclude=excluded)
@@ -423,7 +436,8 @@ class _TaskRun:
             monitor.injector = _Hooked()  # type: ignore[assignment]
         t_wall = time.perf_counter()
         try:
-            out = PickPlaceSkill(arm, cfg.ik).run()
+            turn_over = pick.goal.label not in SPOT_LABELS or pick.name in self.turn_over
+            out = PickPlaceSkill(arm, cfg.ik, turn_over=turn_over).run()
         except ConfigError as exc:  # the goal the planner chose does not suit this object (nothing has moved)
             out = arm.out
             out.phase, out.failure_phase, out.failure_reason = Phase.FAILED, Phase.IDLE, str(exc)
