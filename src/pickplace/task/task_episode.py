@@ -331,8 +331,11 @@ class _TaskRun:
             if pick is None:
                 return
             chosen = self._other_spot(pick, poses, spots_excluded.get(pick.name, []))
-            if chosen is None:  # every spot tried: another object first
-                skip.add(pick.name)
+            if chosen is None:  # every spot tried
+                if spots_excluded.get(pick.name) and self._turning_allowed(pick.name):
+                    spots_excluded[pick.name].clear()
+                    continue
+                skip.add(pick.name)  # another object first
                 continue
             pick = chosen
             if self.count[pick.name] >= self.task.max_picks_per_object:
@@ -359,10 +362,7 @@ class _TaskRun:
                         excluded.append(pick.goal.xy_m)
                         if len(excluded) < SPOTS_TRIED:
                             continue
-                        if pick.name not in self.turn_over:  # no spot keeps it upright: the spots again, turning
-                            log.info("task: no spot keeps the %s upright on the way; trying them turning it",
-                                     pick.name)
-                            self.turn_over.add(pick.name)
+                        if self._turning_allowed(pick.name):
                             excluded.clear()
                             continue
                     skip.add(pick.name)
@@ -384,6 +384,15 @@ class _TaskRun:
             self.planner.placed(pick, after)
             if knocked and not self._repair(knocked, after):
                 return
+
+    def _turning_allowed(self, name: str) -> bool:
+        """After no spot kept the object upright on the way: the spots again, turning it allowed (once); whether
+        that is new."""
+        if name in self.turn_over:
+            return False
+        log.info("task: no spot keeps the %s upright on the way; trying them again, turning it", name)
+        self.turn_over.add(name)
+        return True
 
     def _can_retry(self, name: str, poses: dict[str, pin.SE3]) -> bool:
         """Whether a failed pick and place can be taken again: tries are left, the hand is empty, and the object

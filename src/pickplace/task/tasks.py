@@ -378,13 +378,14 @@ class TaskPlanner:
         clearance, the one nearest the robot's base (the bin fills from its near corner outwards: far out, the arm
         reaches a spot only with its elbow and wrist flipped, and a carried object slips while the hand turns
         over to get there), with the object's yaw as it lies now (the wrist need not turn it on the way), or a
-        quarter turn from it where only that fits; None if there is none."""
+        quarter turn from it, or along the bin's sides, where only that fits; None if there is none."""
         b = self.scene.bin
         assert b is not None
         lo, hi = b.inner_box_xy_m
         in_bin = [self._footprint_now(n, poses) for n in self.objects if n != name and self.in_bin(n, poses[n])]
         yaw_now = object_yaw(poses[name].rotation)  # as it lies (the hand need not turn it), else a quarter turn
-        spots = self._spots(name, lo, hi, 0.01, in_bin, (yaw_now, yaw_now + math.pi / 2), (lo, hi), [])
+        spots = self._spots(name, lo, hi, 0.01, in_bin, (yaw_now, yaw_now + math.pi / 2, 0.0, math.pi / 2), (lo, hi),
+                            [])
         spots = [s for s in spots if not any(math.hypot(s[0] - e[0], s[1] - e[1]) < 0.03 for e in exclude or [])]
         if not spots:
             return None
