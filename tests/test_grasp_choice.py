@@ -194,3 +194,23 @@ def test_a_far_place_is_reached_keeping_the_carried_object_upright(yaw_rad: floa
                 for q in (lift, pre)]
     assert branches[0] == branches[1]
     assert carried_tilt_rad(robot, joint_line(lift, pre)) <= TURN_OVER_RAD
+
+
+def test_a_grasp_that_turns_the_object_over_is_a_last_resort_or_refused() -> None:
+    # Among the best-ranked grasps, some reach the place (yaw 1.16) only on another branch than their lift's.
+    from pickplace.errors import TurnsOver
+    from pickplace.grasping.grip import TURN_OVER_RAD, carried_tilt_rad, joint_line
+
+    robot = _into_the_bin(1.16)
+    turning = []
+    for grasp in candidate_grasps(robot, start_pose(robot))[:12]:
+        try:
+            solve_grasp_configurations(robot, clearance_m=0.02, grasps=[grasp], turn_over=False)
+        except TurnsOver as exc:
+            assert "would tilt" in str(exc)
+            turning.append(grasp)
+        except UnreachableTarget:
+            continue
+    assert turning, "no grasp of the first 12 turns the object over: the scene no longer tests this"
+    configs = solve_grasp_configurations(robot, clearance_m=0.02, grasps=turning[:1], turn_over=True)
+    assert carried_tilt_rad(robot, joint_line(configs.lift.q, configs.preplace.q)) > TURN_OVER_RAD

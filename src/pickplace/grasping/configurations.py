@@ -338,8 +338,9 @@ class _Chain:
                 preplace = self._point("preplace", raised(targets.place, float(h)), lift.q, carry, held_m,
                                        upright_from=lift.q if self.upright else None)
             except UnreachableTarget as exc:
-                if not isinstance(exc, TurnsOver) and "collision" not in exc.reason:  # out of reach: higher is no
-                    if first is None:  # better
+                if not isinstance(exc, TurnsOver) and "collision" not in exc.reason:
+                    # out of reach: higher is no better; a lower failure says more
+                    if first is None:
                         raise
                     raise type(first)(first.target, f"{first.reason} (and out of reach higher)",
                                       first.position_error_m, first.orientation_error_rad, first.q) from None
