@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from pickplace.errors import ConfigError, PlanningFailed
+from pickplace.errors import ConfigError, PlanningFailed, SearchExhausted
 from pickplace.motion.planning import (
     PlannerConfig,
     PlanStatus,
@@ -16,6 +17,7 @@ from pickplace.motion.planning import (
     path_cost,
     path_valid,
     plan,
+    retry_configs,
     segment_valid,
     shortcut,
 )
@@ -168,6 +170,25 @@ def test_time_budget_stops_search() -> None:
     cfg = PlannerConfig(iterations=1_000_000, time_budget_s=0.05, step_size_rad=0.01)
     with pytest.raises(PlanningFailed, match=r"budget 0\.05 s"):
         plan(maze_2d(), START2, GOAL2, LO2, HI2, cfg)
+
+
+def test_a_search_that_runs_out_is_tried_again_with_the_next_seed_and_more_budget() -> None:
+    """100 iterations never get through the maze; the retry (next seed, 20 times the iterations) does, and a
+    search that can never succeed reports every attempt."""
+    cfg = PlannerConfig(seed=3, iterations=100, time_budget_s=30.0, retries=0)
+    with pytest.raises(SearchExhausted, match=r"100 of 100 iterations"):
+        plan(maze_2d(), START2, GOAL2, LO2, HI2, cfg)
+    retried = replace(cfg, retries=1, retry_growth=20.0)
+    assert [(c.seed, c.iterations, c.time_budget_s, c.box_margin_rad) for c in retry_configs(retried)] == [
+        (3, 100, 30.0, 1.0), (4, 2000, 600.0, 2.0)]
+    res = plan(maze_2d(), START2, GOAL2, LO2, HI2, retried)
+    assert 100 < res.iterations <= 2000
+    assert path_valid(maze_2d(), res.path, 0.01)
+    walls = [("left", [0.8, 0.8], [1.0, 2.2]), ("right", [2.0, 0.8], [2.2, 2.2]),
+             ("bottom", [0.8, 0.8], [2.2, 1.0]), ("top", [0.8, 2.0], [2.2, 2.2])]
+    with pytest.raises(SearchExhausted, match=r"seed 0: .*100 of 100 .*; then seed 1: .*300 of 300 .*; then seed 2"):
+        plan(BoxWorld(walls), START2, np.array([1.5, 1.5]), LO2, HI2,
+             PlannerConfig(iterations=100, time_budget_s=30.0, retries=2))
 
 
 def test_same_seed_is_bit_identical_and_seeds_differ() -> None:

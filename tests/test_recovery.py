@@ -42,13 +42,13 @@ def test_the_budget_refuses_repeats_and_counts() -> None:
 
 
 def test_no_path_to_a_grasp_falls_back_to_the_next_one_before_the_arm_moves() -> None:
-    """A planner that gives up at once (1 iteration) finds no path around the wall to the cube beside it: the
-    episode drops each grasp in turn for the next that solves, up to the retry budget, without moving."""
-    config = EpisodeConfig(planner=PlannerConfig(iterations=1)).with_scene(obstacle=True, obstacle_xy_m=(0.42, 0.0),
-                                                                           start_xy_m=(0.35, 0.08))
+    """A planner that gives up at once (1 iteration, no retry) finds no path around the wall to the cube beside
+    it: the episode drops each grasp in turn for the next that solves, up to the retry budget, without moving."""
+    config = EpisodeConfig(planner=PlannerConfig(iterations=1, retries=0)).with_scene(
+        obstacle=True, obstacle_xy_m=(0.42, 0.0), start_xy_m=(0.35, 0.08))
     r = run_episode(config)
     assert not r.success
-    assert r.failure_phase == "PLAN_APPROACH" and r.failure_kind == "PlanningFailed"
+    assert r.failure_phase == "PLAN_APPROACH" and r.failure_kind == "SearchExhausted"  # a PlanningFailed
     assert len(r.recoveries) == config.machine.max_retries
     assert all("drop this grasp and take the next one" in note for note in r.recoveries)
     assert "same failure as before" not in r.failure_reason  # each fallback changed the grasp

@@ -97,6 +97,11 @@ class PlanningFailed(PickPlaceError):
     """The motion planner could not produce a path (invalid start/goal or budget exhausted)."""
 
 
+class SearchExhausted(PlanningFailed):
+    """The planner's search ended (iterations or time budget spent) without reaching the goal; start and goal
+    were valid, so another search (another seed, more budget) may succeed."""
+
+
 class TimingFailed(PickPlaceError):
     """Time scaling (TOPP-RA) failed for a path."""
 

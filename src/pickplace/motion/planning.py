@@ -23,7 +23,7 @@ from typing import Protocol
 
 import numpy as np
 
-from pickplace.errors import ConfigError, PlanningFailed
+from pickplace.errors import ConfigError, PlanningFailed, SearchExhausted
 from pickplace.world.config import check_int, check_range
 
 logger = logging.getLogger(__name__)
@@ -81,6 +81,11 @@ class PlannerConfig:
             ``box_margin_rad`` on every joint and clipped to the joint bounds, instead of in the
             full bounds (which may be ±2π wide). A path that must leave this box will not be found.
         box_margin_rad: Margin of the sampling box (rad per joint).
+        retries: Searches tried again when one ends without a path (:class:`~pickplace.errors.SearchExhausted`),
+            each with the next seed, ``retry_growth`` times the time budget and iterations of the one before and
+            twice its box margin. The budget is wall-clock time, so a search on a loaded machine may run out
+            where it would succeed on an idle one; a second, larger search costs time only when the first fails.
+        retry_growth: Growth of the time budget and iterations per retry.
 
     The defaults (step 0.4, radius cap 0.8 = 2 steps, box sampling with a 1 rad margin) gave the fewest
     checked configurations on 6-D toy problems; full ±π sampling often exhausts 6000 iterations there.
@@ -100,6 +105,8 @@ class PlannerConfig:
     shortcut_min_gain_rad: float = 0.01
     sample_in_box: bool = True
     box_margin_rad: float = 1.0
+    retries: int = 1
+    retry_growth: float = 3.0
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -113,8 +120,9 @@ class PlannerConfig:
                 raise ConfigError(f"planner.{name}", getattr(self, name), "must be true or false")
 
 
+_MAX_ITERATIONS = 1_000_000
 _INT_FIELDS: dict[str, tuple[int, int | None]] = {
-    "iterations": (1, 1_000_000), "seed": (0, None), "shortcut_iterations": (0, 100_000)}
+    "iterations": (1, _MAX_ITERATIONS), "seed": (0, None), "shortcut_iterations": (0, 100_000), "retries": (0, 10)}
 _FLOAT_FIELDS: dict[str, tuple[float, float, bool, str]] = {  # field: (lo, hi, lo_open, unit)
     "step_size_rad": (0.0, math.pi, True, "rad"),
     "goal_bias": (0.0, 1.0, False, ""),
@@ -124,6 +132,7 @@ _FLOAT_FIELDS: dict[str, tuple[float, float, bool, str]] = {  # field: (lo, hi, 
     "time_budget_s": (0.0, 3600.0, True, "s"),
     "box_margin_rad": (0.0, 10.0, False, "rad"),
     "shortcut_min_gain_rad": (0.0, 1.0, False, "rad"),
+    "retry_growth": (1.0, 100.0, False, ""),
 }
 
 
@@ -357,7 +366,7 @@ def _search(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray, lo: n
                 if cfg.stop_at_first_solution:
                     break
     if goal_idx < 0:
-        raise PlanningFailed(
+        raise SearchExhausted(
             f"RRT* found no path after {used} of {cfg.iterations} iterations in "
             f"{time.perf_counter() - t0:.3f} s (budget {cfg.time_budget_s:g} s), tree of {n} nodes"
         )
@@ -430,6 +439,50 @@ def plan(checker: ValidityChecker, q_start: np.ndarray, q_goal: np.ndarray, lowe
         cost = path_cost(path)
         logger.debug("plan: direct segment is valid (cost %.4f rad)", cost)
         return PlanResult(path, path, cost, cost, 0, 2, time.perf_counter() - t0, 0.0, PlanStatus.DIRECT)
+    failures: list[str] = []
+    for attempt in retry_configs(cfg):
+        try:
+            raw, short, used, n, t1, t2 = _search_and_shortcut(checker, start, goal, lo, hi, attempt)
+            break
+        except SearchExhausted as exc:
+            failures.append(f"seed {attempt.seed}: {exc}")
+            logger.info("plan: %s", failures[-1])
+    else:
+        raise SearchExhausted("; then ".join(failures))
+    if failures:
+        logger.info("plan: solved by retry %d (seed %d)", len(failures), attempt.seed)
+        cfg = attempt
+    t1, t2 = t1 - t0, t2 - t0
+    cost_raw, cost = path_cost(raw), path_cost(short)
+    if cost > cost_raw:  # cannot happen beyond rounding; keep the promise anyway
+        short, cost = raw.copy(), cost_raw
+    raw.setflags(write=False)
+    short.setflags(write=False)
+    status = PlanStatus.SOLVED if cfg.stop_at_first_solution else PlanStatus.REFINED
+    logger.debug("plan: %s after %d iterations, %d nodes, %.4f s; cost %.4f -> %.4f rad (%d -> %d waypoints) "
+                 "in %.4f s", status.value, used, n, t1, cost_raw, cost, len(raw), len(short), t2 - t1)
+    return PlanResult(raw, short, cost_raw, cost, used, n, t1, t2 - t1, status)
+
+
+def retry_configs(cfg: PlannerConfig) -> list[PlannerConfig]:
+    """The searches :func:`plan` tries in turn: ``cfg``, then ``cfg.retries`` more, each with the next seed,
+    ``cfg.retry_growth`` times the time budget and iterations of the one before (iterations capped at the
+    field's bound) and twice its box margin."""
+    out = [cfg]
+    for _ in range(cfg.retries):
+        last = out[-1]
+        out.append(replace(last, seed=last.seed + 1, time_budget_s=last.time_budget_s * cfg.retry_growth,
+                           iterations=min(int(last.iterations * cfg.retry_growth), _MAX_ITERATIONS),
+                           box_margin_rad=min(2.0 * last.box_margin_rad, _FLOAT_FIELDS["box_margin_rad"][1])))
+    return out
+
+
+def _search_and_shortcut(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray, lo: np.ndarray,
+                         hi: np.ndarray, cfg: PlannerConfig) -> tuple[np.ndarray, np.ndarray, int, int, float, float]:
+    """One RRT* search with its own seed and budget, then shortcutting (redone at ``verify_resolution_rad`` if the
+    path fails that check). Returns (tree path, shortcut path, iterations, tree size, end of search, end of
+    shortcutting) (times from ``time.perf_counter``)."""
+    t0 = time.perf_counter()
     rng = np.random.default_rng(cfg.seed)
     raw, used, n = _search(checker, start, goal, lo, hi, cfg, rng, t0)
     t1 = time.perf_counter()
@@ -445,16 +498,8 @@ def plan(checker: ValidityChecker, q_start: np.ndarray, q_goal: np.ndarray, lowe
         t1 = time.perf_counter()
         short = shortcut(checker, raw, fine, rng)
         t2 = time.perf_counter()
-    cost_raw, cost = path_cost(raw), path_cost(short)
-    if cost > cost_raw:  # cannot happen beyond rounding; keep the promise anyway
-        short, cost = raw.copy(), cost_raw
-    raw.setflags(write=False)
-    short.setflags(write=False)
-    status = PlanStatus.SOLVED if cfg.stop_at_first_solution else PlanStatus.REFINED
-    logger.debug("plan: %s after %d iterations, %d nodes, %.4f s; cost %.4f -> %.4f rad (%d -> %d waypoints) "
-                 "in %.4f s", status.value, used, n, t1 - t0, cost_raw, cost, len(raw), len(short), t2 - t1)
-    return PlanResult(raw, short, cost_raw, cost, used, n, t1 - t0, t2 - t1, status)
+    return raw, short, used, n, t1, t2
 
 
 __all__ = ["PlanResult", "PlanStatus", "PlannerConfig", "ValidityChecker", "path_cost", "path_valid", "plan",
-           "sampling_bounds", "segment_valid", "shortcut"]
+           "retry_configs", "sampling_bounds", "segment_valid", "shortcut"]

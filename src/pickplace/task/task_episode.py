@@ -285,13 +285,15 @@ def _did_not_start(result: EpisodeResult) -> bool:
     if result.failure_phase == Phase.IDLE.value and result.failure_kind in _NOT_STARTED:
         return True
     phases = [p for p, *_ in result.phase_timeline]
-    return (result.failure_phase == Phase.PLAN_APPROACH.value and result.failure_kind == "PlanningFailed"
+    return (result.failure_phase == Phase.PLAN_APPROACH.value and result.failure_kind in _PLANNING_FAILED
             and phases == [Phase.IDLE.value, Phase.PLAN_APPROACH.value])
 
 
 #: Failures of IDLE that leave everything as it was: no grasp or place reaches, or the chosen goal does not suit
 #: the object (a spot the planner chose on the bin's wall).
 _NOT_STARTED = ("UnreachableTarget", "TurnsOver", "ConfigError", "InsideObstacle")
+#: The planner's failures (:class:`~pickplace.errors.PlanningFailed` and its kinds).
+_PLANNING_FAILED = ("PlanningFailed", "SearchExhausted")
 
 
 class _TaskRun:
