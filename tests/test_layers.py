@@ -1,6 +1,6 @@
-"""The package's floors: an import only goes down (``cli`` → ``eval`` → ``task`` → ``perception`` →
+"""The package's floors: an import only goes down (``cli`` → ``eval`` → ``envs`` → ``task`` → ``perception`` →
 ``grasping`` → ``motion`` → ``robot`` → ``world`` → ``errors``), so that each floor can be read, tested and
-replaced without the ones above."""
+replaced without the ones above. ``envs`` holds the Gymnasium environments, built on the tasks and skills."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "pickplace"
-FLOORS = ["errors", "world", "robot", "motion", "grasping", "perception", "task", "eval", "cli"]
+FLOORS = ["errors", "world", "robot", "motion", "grasping", "perception", "task", "envs", "eval", "cli"]
 
 
 def _floor(module: str) -> int:

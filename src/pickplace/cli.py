@@ -565,8 +565,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("bench", help="benchmarks: planning (vs OMPL), control (vs bare mj_step), campaign (scaling), "
                                      "perception (camera pose error), sensing (success and place error vs camera "
-                                     "noise and calibration)")
-    p.add_argument("name", choices=["planning", "control", "campaign", "perception", "sensing", "tasks"],
+                                     "noise and calibration), env (the Gymnasium environments' speed and success)")
+    p.add_argument("name", choices=["planning", "control", "campaign", "perception", "sensing", "tasks", "env"],
                    help="which benchmark")
     p.add_argument("bench_args", nargs=argparse.REMAINDER,
                    help="options of the benchmark (e.g. --json; planning: --quick, --queries N, --budget S, "
