@@ -4,6 +4,8 @@ bad arguments and actions."""
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import math
 
 import mujoco
@@ -17,6 +19,8 @@ from gymnasium.utils.env_checker import check_env  # noqa: E402
 import pickplace.envs  # noqa: E402  (registers the ids)
 from pickplace.envs import ENV_IDS  # noqa: E402
 from pickplace.errors import ConfigError  # noqa: E402
+from pickplace.task.episode import EpisodeConfig  # noqa: E402
+from pickplace.task.faults import FaultConfig  # noqa: E402
 from pickplace.task.phases import MachineConfig  # noqa: E402
 
 TASK_IDS = ["pickplace/Place-v0", "pickplace/Stack-v0", "pickplace/Clear-v0"]
@@ -229,6 +233,36 @@ def test_low_level_steps_are_reproducible() -> None:
         env.close()
     for x, y in zip(*runs, strict=True):
         _same(x, y)
+
+
+def test_low_level_reset_options_config() -> None:
+    """``reset(options={"config": ...})`` runs that episode's config: an EpisodeConfig, its dict or its JSON give
+    the same episode (its scene, its model faults applied); the next plain reset is the constructor's again; bad
+    options name the key and leave the episode as it was."""
+    env = gym.make("pickplace/PickPlaceLowLevel-v0", randomize=False)
+    config = EpisodeConfig().with_scene(start_xy_m=(0.45, 0.12), goal_xy_m=(0.40, -0.10))
+    config = dataclasses.replace(config, faults=FaultConfig(pad_friction_scale=0.5))
+    obs_a, _ = env.reset(seed=3, options={"config": config})
+    obs_b, _ = env.reset(seed=3, options={"config": json.dumps(config.to_dict())})
+    obs_c, _ = env.reset(seed=3, options={"config": config.to_dict()})
+    _same(obs_a, obs_b)
+    _same(obs_a, obs_c)
+    np.testing.assert_allclose(obs_a["object_pos"][0, :2], (0.45, 0.12), atol=1e-6)
+    np.testing.assert_allclose(obs_a["goal_pos"][0, :2], (0.40, -0.10), atol=1e-6)
+    u = env.unwrapped
+    assert u.episode_config == config
+    h = u.robot.handles
+    mu = u.robot.mj.geom_friction[int(h.object_geoms[0])][0]
+    assert u.robot.mj.geom_friction[int(h.pad_geoms[0])][0] == pytest.approx(0.5 * mu)
+    obs_d, _ = env.reset(seed=3)
+    assert not np.allclose(obs_d["object_pos"][0, :2], (0.45, 0.12), atol=0.01)
+    for options, field in [({"config": "{not json"}, "options.config"), ({"seed": 1}, "options"),
+                           ({"config": EpisodeConfig().with_profile("realistic")}, "options.config.profile"),
+                           ({"config": {"scene": {"nonsense": 1}}}, "scene.nonsense")]:
+        with pytest.raises(ConfigError) as exc:
+            env.reset(seed=3, options=options)
+        assert exc.value.field == field
+    env.close()
 
 
 def test_sync_vector_env() -> None:

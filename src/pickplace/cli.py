@@ -1,4 +1,4 @@
-"""The ``pickplace`` command line: ``run``, ``eval``, ``report``, ``inspect`` and ``bench``.
+"""The ``pickplace`` command line: ``run``, ``replay``, ``eval``, ``report``, ``dataset``, ``inspect`` and ``bench``.
 
 The library logs and never prints; this module prints (rich tables) and turns every
 :class:`~pickplace.errors.PickPlaceError` into one clear line on stderr and a non-zero exit code.
@@ -26,8 +26,10 @@ from pickplace.world.config import SceneConfig
 
 if TYPE_CHECKING:
     from pickplace.eval.campaign import CampaignConfig, CampaignRun
+    from pickplace.eval.dataset import RecordConfig
     from pickplace.robot.model import Robot
     from pickplace.task.episode import EpisodeConfig, EpisodeResult
+    from pickplace.task.episode_file import SavedEpisode
     from pickplace.task.faults import FaultConfig
     from pickplace.task.task_episode import TaskResult
     from pickplace.task.tasks import TaskConfig
@@ -329,6 +331,17 @@ def print_episode(result: EpisodeResult, console: Console) -> None:
         console.print(f"recovery: {escape(line)}", highlight=False)
 
 
+def add_web_options(p: argparse.ArgumentParser) -> None:
+    """The web viewer's options (``run`` and ``replay``)."""
+    p.add_argument("--web", action="store_true",
+                   help="serve the episode in a web 3D viewer until Ctrl-C: robot, objects, planned paths, grasps, "
+                        "pad forces and a timeline (needs pip install 'pickplace[web]'; no display needed)")
+    p.add_argument("--host", default="127.0.0.1", metavar="HOST",
+                   help="with --web: the address to serve on (default 127.0.0.1; 0.0.0.0 for every interface)")
+    p.add_argument("--port", type=int, default=8080, metavar="PORT",
+                   help="with --web: the port (default 8080; the next free one if it is busy; 0: any free one)")
+
+
 def add_task_options(p: argparse.ArgumentParser) -> None:
     """The task options of ``run`` (several objects)."""
     p.add_argument("--task", choices=("place", "stack", "clear"),
@@ -408,18 +421,65 @@ def _cmd_task(args: argparse.Namespace, console: Console, config: EpisodeConfig)
     if args.viewer and not _has_display():
         raise CliError("--viewer needs a display (none found: DISPLAY and WAYLAND_DISPLAY are unset); "
                        "use --video PATH.mp4 to render offscreen instead")
-    result = run_task(config, args.seed, record=bool(args.video or args.plots or args.viewer))
+    _check_web(args)
+    result = run_task(config, args.seed, record=_wants_recording(args))
     if args.json:
         print(json.dumps(result.to_dict(), indent=2))
     else:
         print_task(result, console)
     _write_media(args, config, result.telemetry, console)
+    _save_episode(args, result, console)
+    code = 0
     if not result.success:
         Console(stderr=True, soft_wrap=True).print(
             f"[bold red]error:[/] {result.failure_kind}: task failed: {escape(result.failure_reason or '')}",
             highlight=False)
-        return EXIT_FAILURE
-    return 0
+        code = EXIT_FAILURE
+    if args.web:
+        from pickplace.task.episode_file import episode_of
+
+        _serve_web(args, episode_of(result), console)
+    return code
+
+
+def _wants_recording(args: argparse.Namespace) -> bool:
+    """Whether ``run`` must record the episode's telemetry (for media, the episode file or the web viewer)."""
+    return bool(args.video or args.plots or args.viewer or args.save or args.web)
+
+
+def _check_web(args: argparse.Namespace) -> None:
+    """Fail before anything runs if ``--web`` cannot be served (viser missing)."""
+    if args.web:
+        from pickplace.eval.web import require_viser
+
+        require_viser()
+
+
+def _save_episode(args: argparse.Namespace, result: EpisodeResult | TaskResult, console: Console) -> None:
+    """``run --save EP.npz``: the episode file that ``pickplace replay`` reads."""
+    if args.save:
+        from pickplace.task.episode_file import save_episode
+
+        path = save_episode(args.save, result)
+        (Console(stderr=True) if args.json else console).print(escape(f"wrote {path}"), highlight=False)
+
+
+def _serve_web(args: argparse.Namespace, episode: SavedEpisode, console: Console) -> None:
+    """Serve ``episode`` in the web viewer at ``--host``/``--port`` until Ctrl-C."""
+    from pickplace.eval.web import EpisodeViewer
+
+    out = Console(stderr=True, soft_wrap=True) if getattr(args, "json", False) else console
+    viewer = EpisodeViewer(episode, host=args.host, port=args.port, t_s=getattr(args, "at", None) or 0.0)
+    try:
+        if viewer.server.get_port() != args.port and args.port != 0:
+            out.print(f"port {args.port} is busy: using {viewer.server.get_port()}", highlight=False)
+        out.print(escape(f"web viewer: {viewer.url}  (serving until Ctrl-C)"), highlight=False, soft_wrap=True)
+        out.file.flush()
+        viewer.serve_forever()
+    except KeyboardInterrupt:
+        out.print("web viewer stopped", highlight=False)
+    finally:
+        viewer.close()
 
 
 def _write_media(args: argparse.Namespace, config: EpisodeConfig, telemetry: Telemetry | None,
@@ -450,23 +510,56 @@ def _cmd_run(args: argparse.Namespace, console: Console) -> int:
         return _cmd_task(args, console, config)
     if args.objects is not None or args.order is not None:
         raise CliError("--objects and --order go with --task place|stack|clear")
-    wants_media = bool(args.video or args.plots or args.viewer)
     if args.viewer and not _has_display():
         raise CliError("--viewer needs a display (none found: DISPLAY and WAYLAND_DISPLAY are unset); "
                        "use --video PATH.mp4 to render offscreen instead")
-    result = run_episode(config, args.seed, record=wants_media)
+    _check_web(args)
+    result = run_episode(config, args.seed, record=_wants_recording(args))
     moved = result.failure_phase != Phase.IDLE.value  # IDLE fails before the arm moves: one line is enough
     if args.json:
         print(json.dumps(result.to_dict(), indent=2))
     elif moved:
         print_episode(result, console)
     _write_media(args, config, result.telemetry, console)
+    _save_episode(args, result, console)
+    code = 0
     if not result.success:
         err = Console(stderr=True, soft_wrap=True)
         where = f"episode failed in {result.failure_phase}" if moved else "nothing moved"
         err.print(f"[bold red]error:[/] {result.failure_kind}: {where}: {escape(result.failure_reason or '')}",
                   highlight=False)
-        return EXIT_FAILURE
+        code = EXIT_FAILURE
+    if args.web:
+        from pickplace.task.episode_file import episode_of
+
+        _serve_web(args, episode_of(result), console)
+    return code
+
+
+def _cmd_replay(args: argparse.Namespace, console: Console) -> int:
+    """``pickplace replay EP.npz``: what the file holds; with --web, --video, --plots or --viewer, shown."""
+    from pickplace.task.episode_file import load_episode
+
+    if args.viewer and not _has_display():
+        raise CliError("--viewer needs a display (none found: DISPLAY and WAYLAND_DISPLAY are unset); "
+                       "use --web to replay it in a browser instead")
+    _check_web(args)
+    ep = load_episode(args.episode)
+    tel, r = ep.telemetry, ep.result
+    what = f"{r.get('kind')} task" if ep.kind == "task" else f"pick and place of the {ep.config.scene.object.name}"
+    if ep.success:
+        outcome = "[green]success[/]"
+    else:
+        outcome = f"[red]failed in {escape(str(r.get('failure_phase')))}[/]: {escape(str(r.get('failure_reason')))}"
+    console.print(f"{escape(what)}, seed {ep.seed}, {ep.config.profile.name} profile: {outcome}", highlight=False)
+    console.print(f"{ep.duration_s:.2f} s simulated, {tel.frame_t_s.size} frames, planned paths: {len(tel.plans)}, "
+                  f"grasp choices: {len(tel.grasps)} (written by pickplace {escape(ep.written_by)})", highlight=False)
+    if not (args.web or args.video or args.plots or args.viewer):
+        console.print("show it with --web (in a browser), --video PATH.mp4, --plots DIR or --viewer", highlight=False)
+        return 0
+    _write_media(args, ep.config, tel, console)
+    if args.web:
+        _serve_web(args, ep, console)
     return 0
 
 
@@ -553,8 +646,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--viewer", action="store_true", help="replay the episode in MuJoCo's viewer (needs a display)")
     p.add_argument("--video", metavar="PATH.mp4", help="render the episode offscreen to a video (MUJOCO_GL=egl)")
     p.add_argument("--plots", metavar="DIR", help="write joint tracking, tcp height, grip force and timeline PNGs")
+    p.add_argument("--save", metavar="EP.npz", help="write the recorded episode (or task) for `pickplace replay`")
+    add_web_options(p)
     add_task_options(p)
     p.set_defaults(func=_cmd_run)
+
+    p = sub.add_parser("replay", help="a recorded episode (pickplace run --save EP.npz): in the browser (--web), as a "
+                                      "video, plots, or in MuJoCo's viewer")
+    p.add_argument("episode", metavar="EP.npz", help="the episode file (pickplace run --save)")
+    add_web_options(p)
+    p.add_argument("--at", type=float, metavar="S", help="with --web: the time shown first (s)")
+    p.add_argument("--viewer", action="store_true", help="replay it in MuJoCo's viewer (needs a display)")
+    p.add_argument("--video", metavar="PATH.mp4", help="render it offscreen to a video (MUJOCO_GL=egl)")
+    p.add_argument("--plots", metavar="DIR", help="write joint tracking, tcp height, grip force and timeline PNGs")
+    p.set_defaults(func=_cmd_replay, json=False)
 
     p = sub.add_parser("inspect", help="model summary, gripper geometry, IK of the targets, hold test")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -594,8 +699,28 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-randomize", action="store_true",
                    help="run the base config in every trial (only the episode seed varies)")
     p.add_argument("--json", action="store_true", help="print summary.json instead of the tables")
+    p.add_argument("--record", metavar="DIR",
+                   help="the trials acted by the expert through pickplace/PickPlaceLowLevel-v0 (joint mode) and "
+                        "written as one Minari dataset in DIR/<id> (needs pip install 'pickplace[dataset]')")
+    p.add_argument("--record-failures", choices=("keep", "drop"), default=None,
+                   help="with --record: keep the failed episodes, labelled with phase, kind and reason (default), "
+                        "or leave them out")
+    p.add_argument("--record-id", metavar="ID", default=None,
+                   help="with --record: the dataset's id, namespace/name-vN (default pickplace/expert-v0)")
+    p.add_argument("--record-rate", type=float, metavar="HZ", default=None,
+                   help="with --record: the environment's control rate, 20, 25, 40 or 50 Hz (default 20)")
     add_task_options(p)
     p.set_defaults(func=_cmd_eval)
+
+    p = sub.add_parser("dataset", help="the figures of a recorded dataset (pickplace eval --record), and replays "
+                       "of its episodes through the environment")
+    p.add_argument("dir", metavar="DIR", help="the datasets' directory (pickplace eval --record DIR)")
+    p.add_argument("--id", default=None, metavar="ID", help="the dataset's id (default pickplace/expert-v0)")
+    p.add_argument("--replay", type=int, default=0, metavar="N",
+                   help="replay the first N episodes from their seeds with their actions and compare every step "
+                        "and the outcome")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=_cmd_dataset)
 
     p = sub.add_parser("objects", help="the object library: sizes, masses, friction and how many grasps each offers")
     p.add_argument("names", nargs="*", metavar="NAME", help="only these library objects (default: all)")
@@ -706,6 +831,7 @@ def _cmd_eval(args: argparse.Namespace, console: Console) -> int:
 
     from pickplace.eval.campaign import CampaignProgress, run_campaign
 
+    record = _record_from_args(args)
     campaign = campaign_from_args(args)
     progress = Progress(TextColumn("[bold]eval"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[ok]}"),
                         TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
@@ -720,16 +846,79 @@ def _cmd_eval(args: argparse.Namespace, console: Console) -> int:
         else:
             progress.update(task, completed=p.done, ok=f"{p.successes} ok{rate}")
 
+    backend = "ray" if args.ray is not None else "local"
+    written = None
     try:
-        run = run_campaign(campaign, args.out, resume=args.resume, backend="ray" if args.ray is not None else "local",
-                           ray_address=args.ray or None, on_progress=on_progress)
+        if record is None:
+            run = run_campaign(campaign, args.out, resume=args.resume, backend=backend, ray_address=args.ray or None,
+                               on_progress=on_progress)
+        else:
+            from pickplace.eval.dataset import record_campaign
+
+            recorded = record_campaign(campaign, args.out, record, resume=args.resume, backend=backend,
+                                       ray_address=args.ray or None, on_progress=on_progress)
+            run, written = recorded.run, recorded.dataset
     finally:
         progress.stop()
     if args.json:
-        print(json.dumps(run.summary.to_dict(), indent=2))
+        data = run.summary.to_dict()
+        if written is not None:
+            data["dataset"] = {"path": str(written.path), "id": written.dataset_id, "episodes": written.episodes,
+                               "steps": written.steps, "successes": written.successes,
+                               "dropped": list(written.dropped), "missing": list(written.missing)}
+        print(json.dumps(data, indent=2))
     else:
         print_campaign(run, console)
+        if written is not None:
+            console.print(escape(f"dataset {written.dataset_id}: {written.episodes} episodes ({written.steps} steps, "
+                                 f"{written.successes} successes) in {written.path}; {len(written.dropped)} failed "
+                                 f"episodes dropped, {len(written.missing)} trials not recorded"), highlight=False)
     return 0
+
+
+def _record_from_args(args: argparse.Namespace) -> RecordConfig | None:
+    """The :class:`~pickplace.eval.dataset.RecordConfig` of ``eval --record``, or None without it."""
+    extra = [flag for flag, value in (("--record-failures", args.record_failures), ("--record-id", args.record_id),
+                                      ("--record-rate", args.record_rate)) if value is not None]
+    if args.record is None:
+        if extra:
+            raise CliError(f"{' and '.join(extra)} {'goes' if len(extra) == 1 else 'go'} with --record DIR")
+        return None
+    from pickplace.eval.dataset import DATASET_ID, RecordConfig
+
+    return RecordConfig(Path(args.record), args.record_id or DATASET_ID, args.record_failures or "keep",
+                        args.record_rate if args.record_rate is not None else 20.0)
+
+
+def _cmd_dataset(args: argparse.Namespace, console: Console) -> int:
+    from pickplace.eval.dataset import DATASET_ID, load, replay_episode, summarize_dataset
+
+    dataset = load(args.dir, args.id or DATASET_ID)
+    s = summarize_dataset(dataset)
+    if args.replay < 0:
+        raise ConfigError("replay", args.replay, "must be >= 0 episodes")
+    checks = [replay_episode(dataset, i) for i in range(min(args.replay, s.episodes))]
+    if args.json:
+        data = s.to_dict()
+        data["replays"] = [{**dataclasses.asdict(c), "reproduced": c.reproduced} for c in checks]
+        print(json.dumps(data, indent=2))
+        return 0 if all(c.reproduced for c in checks) else EXIT_FAILURE
+    t = Table(title=escape(f"Dataset {s.dataset_id} ({s.path})"))
+    t.add_column("measure")
+    t.add_column("value", justify="right")
+    t.add_row("episodes / steps", f"{s.episodes} / {s.steps} ({s.mean_steps:.1f} steps per episode)")
+    t.add_row("successes", f"{s.successes}/{s.episodes}")
+    t.add_row("environment", escape(", ".join(f"{k}={v}" for k, v in s.env_kwargs.items())))
+    t.add_row("failed trials dropped / trials not recorded", f"{len(s.dropped)} / {len(s.missing)}")
+    for phase, kind, count in s.failures:
+        t.add_row(escape(f"failed: {kind} in {phase}"), str(count))
+    console.print(t)
+    for c in checks:
+        verdict = "reproduced" if c.reproduced else "DIFFERS"
+        console.print(escape(f"replay of episode {c.index}: {verdict}: {c.steps[1]}/{c.steps[0]} steps, observations "
+                             f"{'identical' if c.identical_observations else f'differ by {c.max_difference:.3g}'}, "
+                             f"success {c.success_stored} -> {c.success_replayed}"), highlight=False)
+    return 0 if all(c.reproduced for c in checks) else EXIT_FAILURE
 
 
 def _cmd_objects(args: argparse.Namespace, console: Console) -> int:

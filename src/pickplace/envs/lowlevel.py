@@ -30,13 +30,22 @@ Reward: 1.0 when the object rests at its goal within the machine's place toleran
 simulator's truth (as the project's results are); the observation's object pose is what the robot knows (its
 observer: the truth in the ideal profile, the depth camera's fit in the realistic one, re-taken every
 ``observe_every`` steps: a fit of three 848 x 480 frames costs about 0.5 s of wall time).
+
+``reset(seed=..., options={"config": ...})`` runs that episode with another configuration than the constructor's:
+an :class:`~pickplace.task.episode.EpisodeConfig`, or its ``to_dict()`` (a mapping, or that mapping as a JSON
+string: what a dataset stores with the episode, :mod:`pickplace.eval.dataset`), in the environment's profile. The
+model faults of a configuration (``[faults]`` ``pad_friction_scale``, ``pad_softness_scale``, ``true_mass_scale``,
+``tcp_offset_error_m``, ``tcp_yaw_error_rad``: :func:`~pickplace.task.faults.apply_model_faults`) are applied to the
+episode's model; the timed ones (pushes, the intruder, joint noise) are not injected here.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
 import logging
 import math
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -69,6 +78,7 @@ from pickplace.robot import gripper
 from pickplace.robot.kinematics import rot_z
 from pickplace.robot.model import Robot, build
 from pickplace.task.episode import EpisodeConfig
+from pickplace.task.faults import apply_model_faults
 from pickplace.task.monitor import StepMonitor
 from pickplace.task.observe import Observer, SimulatorObserver
 from pickplace.world.checks import check_int, check_range
@@ -180,10 +190,11 @@ class PickPlaceLowLevelEnv(gym.Env):
         self._views: Views | None = None
         self._ended = False
 
-    def _physics_steps(self, rate_hz: float) -> int:
+    def _physics_steps(self, rate_hz: float, config: EpisodeConfig | None = None) -> int:
         """Physics steps per action; :class:`ConfigError` unless 1 / rate is a whole number of control periods."""
-        dt = self.config.scene.timestep_s
-        period = self.config.profile.loop.steps(dt)[0]
+        config = config if config is not None else self.config
+        dt = config.scene.timestep_s
+        period = config.profile.loop.steps(dt)[0]
         n = round(1.0 / (rate_hz * dt))
         allowed = [r for r in range(int(RATE_RANGE_HZ[0]), int(RATE_RANGE_HZ[1]) + 1)
                    if abs(round(1.0 / (r * dt)) * r * dt - 1.0) < 1e-9 and round(1.0 / (r * dt)) % period == 0]
@@ -196,16 +207,26 @@ class PickPlaceLowLevelEnv(gym.Env):
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-        """A new scene from ``seed``: the arm at home, the gripper open, the object at its (drawn) start."""
+        """A new scene from ``seed``: the arm at home, the gripper open, the object at its (drawn) start.
+
+        Args:
+            seed: Seed of the episode (the scene's draw, the model error and the sensors' noise).
+            options: None, or ``{"config": ...}``: this episode's configuration (module docstring).
+
+        Raises:
+            ConfigError: ``options`` is invalid (the message names the key).
+        """
+        config = self._options_config(options)  # before anything changes: a bad option leaves the episode as it is
         super().reset(seed=seed)
         self._release()
         rng = self.np_random
         self._seed = int(rng.integers(0, 2**31 - 1))
-        base = self.config.scene
+        base = config.scene
         scene = draw_scene(base, rng, self.objects) if self.randomize else base
-        cfg = dataclasses.replace(self.config, scene=scene)
+        cfg = dataclasses.replace(config, scene=scene)
         self._cfg = cfg
         robot = cfg.profile.plant(build(scene), np.random.default_rng([self._seed, 3]))
+        apply_model_faults(robot, cfg.faults)
         d = robot.make_data()
         self._robot, self._d = robot, d
         if cfg.profile.realistic:
@@ -236,6 +257,57 @@ class PickPlaceLowLevelEnv(gym.Env):
         if self.images or self.render_mode == "rgb_array":
             self._views = Views(robot, self.render_size_px, self.image_size_px)
         return self._observation(), self._info({})
+
+    def _options_config(self, options: dict[str, Any] | None) -> EpisodeConfig:
+        """The configuration of the next episode: ``options["config"]`` if given, else the constructor's."""
+        if options is None:
+            return self.config
+        if not isinstance(options, Mapping) or set(options) - {"config"}:
+            raise ConfigError("options", options, "must be None or {'config': EpisodeConfig, mapping or JSON}")
+        value = options.get("config")
+        if value is None:
+            return self.config
+        if isinstance(value, str):
+            try:
+                value = json.loads(value)
+            except ValueError as exc:
+                raise ConfigError("options.config", value[:80], f"is not valid JSON: {exc}") from None
+        config = value if isinstance(value, EpisodeConfig) else EpisodeConfig.from_dict(value)
+        if config.task is not None:
+            raise ConfigError("options.config.task", config.task.kind, "the low-level environment has one object")
+        if config.profile.name != self.config.profile.name:
+            raise ConfigError("options.config.profile", config.profile.name,
+                              f"must be the environment's profile ({self.config.profile.name!r})")
+        try:
+            steps = self._physics_steps(self.control_rate_hz, config)
+        except ConfigError:
+            steps = -1
+        if steps != self.steps_per_action:
+            raise ConfigError("options.config.scene.timestep_s", config.scene.timestep_s,
+                              f"must be the environment's ({self.config.scene.timestep_s:g} s)")
+        return config
+
+    @property
+    def robot(self) -> Robot:
+        """The models of the current episode (its scene, as built and planted by the profile)."""
+        if self._robot is None:
+            raise ConfigError("robot", None, "call reset() first")
+        return self._robot
+
+    @property
+    def episode_config(self) -> EpisodeConfig:
+        """The configuration of the current episode (the drawn scene in it)."""
+        if self._robot is None:
+            raise ConfigError("episode_config", None, "call reset() first")
+        return self._cfg
+
+    @property
+    def sim_data(self) -> mujoco.MjData:
+        """The simulation state of the current episode, to read (the expert, :mod:`pickplace.envs.expert`, plans
+        in it and reads the pads' forces from it); writing to it changes the episode."""
+        if self._robot is None:
+            raise ConfigError("sim_data", None, "call reset() first")
+        return self._d
 
     def _look(self) -> pin.SE3:
         """The object's pose as the robot knows it now: its observer's fit (the camera may not see it: the last)."""

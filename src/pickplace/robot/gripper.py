@@ -291,6 +291,27 @@ def pad_load(robot: Robot, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
     return normal, total
 
 
+def pad_contact_forces(robot: Robot, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+    """The force each pad exerts on the object and where, as the simulation has them now (for drawing).
+
+    Returns:
+        ``(force, point)``: the total force of the left and right pad on the object (2, 3) in the world (N), and
+        the point it acts at (2, 3) (m), the contact points averaged by their normal force; zeros for a pad that
+        does not touch the object.
+    """
+    force, point, weight, f = np.zeros((2, 3)), np.zeros((2, 3)), np.zeros(2), np.zeros(6)
+    for i, pad, object_is_geom2 in _pad_object_contacts(robot, d):
+        mujoco.mj_contactForce(robot.mj, d, i, f)
+        c = d.contact[i]
+        on_geom2 = c.frame.reshape(3, 3).T @ f[:3]  # frame rows: normal, tangent 1, tangent 2
+        force[pad] += on_geom2 if object_is_geom2 else -on_geom2
+        point[pad] += abs(f[0]) * c.pos
+        weight[pad] += abs(f[0])
+    touching = weight > 0
+    point[touching] /= weight[touching, None]
+    return force, point
+
+
 def pad_forces(robot: Robot, d: mujoco.MjData) -> np.ndarray:
     """Normal force (N) of the object on the left and right pad, (2,)."""
     f, out = np.zeros(6), np.zeros(2)

@@ -214,6 +214,10 @@ class Arm:
         self.out.segments.append(SegmentPlan(name, t1 - t0, t2 - t1, len(res.path_raw), len(res.path), res.cost_rad,
                                              traj.duration_s, res.status.value, slowdown))
         self.trajectory = traj
+        if self.recorder is not None:  # the tcp's path; an approach goes to the pregrasp of the grasp it chose
+            self.recorder.add_plan(name, self.monitor.t, traj)
+            if name == "approach":
+                self.recorder.add_grasp_choice(self.monitor.t, self.observer.object_pose(), q_goal)
 
     def motion_config(self) -> ControlConfig:
         """The controller config of a straight move: with the object held, its peak acceleration limited to

@@ -39,6 +39,7 @@ from pickplace.errors import ConfigError
 from pickplace.eval.campaign.backends import run_local, run_ray
 from pickplace.eval.campaign.ray_cluster import RAY_HINT, ray_session
 from pickplace.eval.campaign.spec import (
+    SIDECAR_KEY,
     WORKER_PHASE,
     CampaignConfig,
     CampaignError,
@@ -134,6 +135,7 @@ def run_campaign(
     ray_address: str | None = None,
     on_progress: Callable[[CampaignProgress], None] | None = None,
     run_fn: RunFn = run_trial,
+    on_sidecar: Callable[[int, Any], None] | None = None,
 ) -> CampaignRun:
     """Run (or complete) a campaign, persisting every trial as it finishes.
 
@@ -152,6 +154,10 @@ def run_campaign(
         run_fn: The trial function run in the workers: ``run_fn(config, seed) -> EpisodeResult`` (or a
             ``TaskResult`` for a task, :func:`~pickplace.task.task_episode.run_trial`, the default); must be
             picklable (a module-level function). Tests pass their own to inject crashes and hangs.
+        on_sidecar: Called in this process with ``(trial index, sidecar)`` for each finished trial whose results
+            line carries a :data:`~pickplace.eval.campaign.spec.SIDECAR_KEY` entry (what ``run_fn``'s result put
+            there besides its figures), before the trial's line is written; the entry itself is never written to
+            ``results.jsonl``.
 
     Returns:
         The :class:`CampaignRun` (the summary is also written to ``OUT/summary.json``).
@@ -173,7 +179,7 @@ def run_campaign(
     try:
         recorded = _prepare_dir(campaign, out, resume)
         writer.cut_partial_line()
-        return _run(campaign, out, writer, recorded, backend, ray_address, on_progress, run_fn, t0)
+        return _run(campaign, out, writer, recorded, backend, ray_address, on_progress, run_fn, t0, on_sidecar)
     finally:
         writer.close()
 
@@ -209,18 +215,18 @@ def _prepare_dir(campaign: CampaignConfig, out: Path, resume: bool) -> dict[int,
 
 def _run(campaign: CampaignConfig, out: Path, writer: ResultsWriter, recorded: dict[int, TrialRecord],
          backend: str, ray_address: str | None, on_progress: Callable[[CampaignProgress], None] | None,
-         run_fn: RunFn, t0: float) -> CampaignRun:
+         run_fn: RunFn, t0: float, on_sidecar: Callable[[int, Any], None] | None = None) -> CampaignRun:
     """Run the trials not in ``recorded``, appending each to ``writer`` as it finishes; write the summary."""
     todo = [make_trial(campaign, i) for i in range(campaign.trials) if i not in recorded]
     with contextlib.ExitStack() as stack:
         # Ray first: a cluster that cannot be joined stops the campaign before anything reports progress
         ray = stack.enter_context(ray_session(ray_address, campaign.workers)) if todo and backend == "ray" else None
-        return _run_trials(campaign, out, writer, recorded, todo, ray, on_progress, run_fn, t0)
+        return _run_trials(campaign, out, writer, recorded, todo, ray, on_progress, run_fn, t0, on_sidecar)
 
 
 def _run_trials(campaign: CampaignConfig, out: Path, writer: ResultsWriter, recorded: dict[int, TrialRecord],
                 todo: list[Trial], ray: Any, on_progress: Callable[[CampaignProgress], None] | None, run_fn: RunFn,
-                t0: float) -> CampaignRun:
+                t0: float, on_sidecar: Callable[[int, Any], None] | None = None) -> CampaignRun:
     """Run ``todo`` (on Ray if ``ray`` is the initialized module, else locally); write the summary."""
     by_index = {t.index: t for t in todo}
     resumed = len(recorded)
@@ -238,10 +244,13 @@ def _run_trials(campaign: CampaignConfig, out: Path, writer: ResultsWriter, reco
 
     def on_result(line: dict[str, Any]) -> None:
         nonlocal done, successes
+        sidecar = line.pop(SIDECAR_KEY, None)
         record = TrialRecord.from_line(line)
         if record.trial in recorded:  # cannot happen with one writer; never write a duplicate
             log.warning("trial %d finished twice; keeping the first result", record.trial)
             return
+        if sidecar is not None and on_sidecar is not None:  # before the line: a resumed campaign skips the trial
+            on_sidecar(record.trial, sidecar)
         if not record.success:
             trial = by_index[record.trial]
             path = trial_toml_path(out, trial.index)
@@ -277,6 +286,7 @@ __all__ = [
     "CAMPAIGN_FILE",
     "RAY_HINT",
     "RESULTS_FILE",
+    "SIDECAR_KEY",
     "SUMMARY_FILE",
     "TRIALS_DIR",
     "WALL_TIME_FIELDS",

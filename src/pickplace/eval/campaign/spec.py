@@ -31,6 +31,10 @@ log = logging.getLogger(__name__)
 
 #: The phase recorded for a trial whose worker raised, crashed or timed out.
 WORKER_PHASE = "WORKER"
+#: A results line may carry, under this key, what a trial produced besides its figures (e.g. a recorded
+#: demonstration, :mod:`pickplace.eval.dataset`): the parent takes it out before the line is written
+#: (:func:`~pickplace.eval.campaign.run_campaign`'s ``on_sidecar``).
+SIDECAR_KEY = "sidecar"
 
 
 class CampaignError(PickPlaceError):
@@ -458,6 +462,7 @@ def execute_trial(run_fn: RunFn, trial: Trial) -> dict[str, Any]:
 __all__ = [
     "PUSH_DURATION_S",
     "PUSH_START_S",
+    "SIDECAR_KEY",
     "WORKER_PHASE",
     "CampaignConfig",
     "CampaignError",
