@@ -303,3 +303,21 @@ def test_a_carried_object_turned_over_is_carried_slower() -> None:
     timing = TimingConfig.ur5e()
     assert hand_turn_rad(robot, retime(np.vstack([lift, flipped]), timing)) > TURN_OVER_RAD
     assert hand_turn_rad(robot, retime(np.vstack([lift, turned]), timing)) < math.radians(1.0)
+
+
+def test_objects_out_of_reach_are_refused_before_anything_moves() -> None:
+    """A goal in the table's far corner is out of the arm's reach: run_task refuses the task naming the object's
+    goal before anything runs. A goal the arm reaches only by turning the carried object over is valid, but out of
+    the upright workspace the random task scenes are drawn from."""
+    from pickplace.task.tasks import check_reachable
+
+    far = SceneConfig(object=cube("a"), start_xy_m=(0.35, 0.20), goal_xy_m=(0.79, 0.48),
+                      others=(SceneObject(cube("b"), (0.45, 0.05), 0.0, (0.40, -0.15)),))
+    with pytest.raises(ConfigError) as exc:
+        run_task(EpisodeConfig(scene=far, task=TaskConfig(kind="place")))
+    assert exc.value.field == "objects.a.goal_xy_m" and "out of the arm's reach for the a" in str(exc.value)
+    turning = SceneConfig(object=cube("c"), start_xy_m=(0.613, 0.351), start_yaw_rad=-0.27,
+                          goal_xy_m=(0.608, -0.352), goal_yaw_rad=-0.36)
+    check_reachable(turning, "place", 0.01)  # turning it over on the way
+    with pytest.raises(ConfigError, match="carried upright"):
+        check_reachable(turning, "place", 0.01, upright=True)

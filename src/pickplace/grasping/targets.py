@@ -30,6 +30,7 @@ import pinocchio as pin
 
 from pickplace.robot.kinematics import rot_z, rotation_distance, wrap_to_pi
 from pickplace.world.config import SceneConfig
+from pickplace.world.objects import ObjectConfig
 
 #: Distance of the pregrasp from the grasp along the approach, of the lift above the grasp and of the preplace
 #: above the place (m) (reference design).
@@ -212,13 +213,20 @@ def grasp_targets(
 
 
 def place_targets(scene: SceneConfig, T_world_tcp: pin.SE3, T_world_object: pin.SE3,
-                  R_world_object_goal: np.ndarray, height_m: float = CLEARANCE_M) -> tuple[pin.SE3, pin.SE3]:
+                  R_world_object_goal: np.ndarray, height_m: float = CLEARANCE_M,
+                  R_world_tcp_planned: np.ndarray | None = None) -> tuple[pin.SE3, pin.SE3]:
     """Preplace and place tcp poses that set the object down at the goal *as it sits in the hand now*.
 
     The grasp never holds the object exactly as planned (the pads push it while they close, it settles in
     transit), so the place is computed from the measured hand-object pose: the tcp is placed so that the
-    object, held as it is, lands at the goal with the planned orientation ``R_world_object_goal`` turned by
-    whatever it has turned in the hand about the vertical, so that its yaw still comes out at the goal's.
+    object, held as it is, lands at the goal.
+
+    With ``R_world_tcp_planned`` (the tcp's planned orientation at the place), the object lands at
+    ``R_world_object_goal`` or the orientation its symmetry makes equal to it (turned about the vertical by its
+    yaw period; any orientation for a sphere) that leaves the hand nearest its planned orientation: the hand
+    tilts by however far the object turned in the grip, so that the object comes down on its face. Without it,
+    the object keeps the tilt it has in the world now and only its yaw is turned to the goal's: that assumes the
+    hand is already upright as at the place (it is not half way through turning over, for one).
 
     Args:
         scene: The scene (goal, table, object).
@@ -226,15 +234,35 @@ def place_targets(scene: SceneConfig, T_world_tcp: pin.SE3, T_world_object: pin.
         T_world_object: Object pose now.
         R_world_object_goal: The object's planned orientation at the goal (from :func:`grasp_targets`).
         height_m: Height of the preplace above the place (m) (:attr:`GraspTargets.preplace_height_m`).
+        R_world_tcp_planned: The tcp's planned orientation at the place (3, 3) (:attr:`GraspTargets.place`).
 
     Returns:
         ``(preplace, place)``.
     """
     T_object_tcp = T_world_object.actInv(T_world_tcp)
-    R = rot_z(float(wrap_to_pi(object_yaw(R_world_object_goal) - object_yaw(T_world_object.rotation)))) @ \
-        T_world_object.rotation
+    if R_world_tcp_planned is None:
+        R = rot_z(float(wrap_to_pi(object_yaw(R_world_object_goal) - object_yaw(T_world_object.rotation)))) @ \
+            T_world_object.rotation
+    else:
+        R = landing_orientation(scene.object, R_world_object_goal, np.asarray(R_world_tcp_planned),
+                                T_object_tcp.rotation)
     place = pin.SE3(R, scene.goal_resting_m(R) + np.array([0.0, 0.0, PLACE_DROP_M])) * T_object_tcp
     return raised(place, height_m), place
+
+
+def landing_orientation(obj: ObjectConfig, R_world_object_goal: np.ndarray, R_world_tcp_planned: np.ndarray,
+                        R_object_tcp: np.ndarray) -> np.ndarray:
+    """The object's orientation at the goal (3, 3) equal to ``R_world_object_goal`` by its symmetry (turned about
+    the vertical by a multiple of its yaw period, by any angle if that is 0; any orientation for a sphere) that,
+    held with ``R_object_tcp`` (the grip as it is now), puts the tcp nearest ``R_world_tcp_planned``."""
+    if obj.kind == "sphere":  # any orientation rests alike: the hand as planned
+        return R_world_tcp_planned @ R_object_tcp.T
+    # the turn about the vertical that brings R_goal R_object_tcp nearest the planned tcp (max trace)
+    M = R_world_object_goal @ R_object_tcp @ R_world_tcp_planned.T
+    best = math.atan2(M[0, 1] - M[1, 0], M[0, 0] + M[1, 1])
+    period = obj.yaw_period_rad
+    turn = best if period <= 0.0 else period * round(best / period)
+    return rot_z(turn) @ R_world_object_goal
 
 
 def yaw_error(R_world_object: np.ndarray, R_world_object_goal: np.ndarray, period_rad: float) -> float:
@@ -256,6 +284,7 @@ __all__ = [
     "GraspTargets",
     "backed_off",
     "grasp_targets",
+    "landing_orientation",
     "object_yaw",
     "place_orientation",
     "place_targets",

@@ -26,7 +26,7 @@ from pickplace.motion import control
 from pickplace.motion.collision import CollisionChecker, CollisionPolicy
 from pickplace.motion.control import ControlConfig, Payload
 from pickplace.motion.loop import ControlLoop
-from pickplace.motion.planning import PlannerConfig, plan
+from pickplace.motion.planning import PlannerConfig, plan, segment_valid
 from pickplace.motion.timing import TimingConfig, Trajectory, retime
 from pickplace.robot import gripper
 from pickplace.robot.ik import IKResult
@@ -51,6 +51,16 @@ def hand_turn_rad(robot: Robot, traj: Trajectory, dt_s: float = 0.02) -> float:
     (:func:`~pickplace.grasping.grip.carried_tilt_rad`)."""
     qs, _, _ = traj.sample_many(np.arange(0.0, traj.duration_s + dt_s, dt_s))
     return carried_tilt_rad(robot, qs)
+
+
+#: Steps of the straight line to ``home`` tried for a start within the planner's margin (fraction of the line).
+ESCAPE_STEP = 0.05
+#: Joint-space step at which the way out is checked (rad, max-norm): it starts close to something.
+ESCAPE_RESOLUTION_RAD = 0.001
+#: The arm's links nearest its base (the UR5e's MJCF collision geoms): a straight rise of the hand does not take
+#: them away from what they are near (reaching far, it lowers the upper arm towards the table's edge).
+PROXIMAL_GEOMS = frozenset({"base_collision", "shoulder_collision", "upper_arm_joint_collision",
+                            "upper_arm_collision", "elbow_collision", "forearm_collision"})
 
 
 class Arm:
@@ -188,7 +198,10 @@ class Arm:
         """
         t0 = time.perf_counter()
         margin = self.cfg.planning_margin_m
-        res = plan(checker_at(margin), self.q, q_goal, self.robot.arm_lower, self.robot.arm_upper, self.planner)
+        checker = checker_at(margin)
+        if not checker.is_valid(self.q):  # within the margin of something, not touching it: leave towards home
+            self._leave(checker_at)
+        res = plan(checker, self.q, q_goal, self.robot.arm_lower, self.robot.arm_upper, self.planner)
         t1 = time.perf_counter()
         accept = checker_at(margin / 2)
         traj = retime(np.asarray(res.path), self.timing, accept.all_valid)
@@ -218,6 +231,29 @@ class Arm:
             self.recorder.add_plan(name, self.monitor.t, traj)
             if name == "approach":
                 self.recorder.add_grasp_choice(self.monitor.t, self.observer.object_pose(), q_goal)
+
+    def _leave(self, checker_at: Callable[[float], CollisionChecker]) -> None:
+        """Move an arm that is within the planner's margin of something, but touches nothing (a recovery stopped it
+        there), straight towards ``home`` until it clears the margin with a step to spare, keeping half the
+        clearance it has (of the margin's halves down to a sixteenth) on the way; nothing if there is no such
+        move (planning from here then fails, naming the geoms)."""
+        margin, q = self.cfg.planning_margin_m, self.q
+        clearance = next((m for m in (margin / 2, margin / 4, margin / 8, margin / 16) if checker_at(m).is_valid(q)),
+                         None)
+        if clearance is None:
+            return
+        full, kept = checker_at(margin), checker_at(clearance / 2)  # room for what lies between the line's checks
+        for s in np.arange(ESCAPE_STEP, 1.0 + 1e-9, ESCAPE_STEP):
+            q_s = q + min(1.0, s + ESCAPE_STEP) * (self.robot.home_q - q)  # a step past the first clear one
+            if not segment_valid(kept, q, q_s, ESCAPE_RESOLUTION_RAD):
+                return
+            if full.is_valid(q + s * (self.robot.home_q - q)) and full.is_valid(q_s):
+                log.info("plan: the arm starts within %.0f mm of something; it moves %.0f %% of the way towards home "
+                         "first", margin * 1e3, min(1.0, s + ESCAPE_STEP) * 100)
+                self.trajectory = retime(np.vstack([q, q_s]), self.timing, kept.all_valid)
+                self.segment_checker = None  # checked above, at the clearance it has
+                self.execute(Phase(self.monitor.phase))
+                return
 
     def motion_config(self) -> ControlConfig:
         """The controller config of a straight move: with the object held, its peak acceleration limited to
@@ -296,12 +332,22 @@ class Arm:
         the planner's margin, as the next planned path needs (the object settled in the grip a little
         differently from the plan, the place ended a little off).
 
+        It does not rise when the arm's links near its base are what is too close (:data:`PROXIMAL_GEOMS`): the
+        next plan leaves from there towards ``home`` (:meth:`plan_segment`).
+
         Raises:
             PhaseFailed: still not clear at the highest step; the geoms are named.
         """
         checker = checker_at(self.cfg.planning_margin_m)
         risen = 0.0
         while not checker.is_valid(self.q):
+            pairs_now = checker.colliding_pairs(self.q)
+            if any(a in PROXIMAL_GEOMS or b in PROXIMAL_GEOMS for a, b in pairs_now):
+                # the upper arm near the table's edge: a rise of the hand brings it lower still; the planner leaves
+                # straight towards home first (plan_segment)
+                log.info("%s: the arm is within the planner's margin (%s); not rising", phase.value,
+                         ", ".join(f"{a} <-> {b}" for a, b in pairs_now))
+                return
             if risen >= MAX_RAISE_M - 1e-9:
                 pairs = ", ".join(f"{a} <-> {b}" for a, b in checker.colliding_pairs(self.q))
                 raise PhaseFailed(phase, f"still within {self.cfg.planning_margin_m * 1e3:.0f} mm of something "

@@ -144,6 +144,12 @@ class Observer(Protocol):
         ...
 
 
+#: The ideal observer's set-down guard: the surface carries this fraction of the held object's weight. Its contact
+#: forces are exact, so a fifth of the weight is a clear signal (the realistic wrist sensor's 0.1 N noise needs half:
+#: :attr:`SensingConfig.load_lost_fraction`).
+TOUCH_DOWN_FRACTION = 0.2
+
+
 class SimulatorObserver:
     """The ideal observer: the simulation's own state, exact and without delay.
 
@@ -218,8 +224,16 @@ class SimulatorObserver:
         return bool(self.object_position()[2] > z0_m + 0.003)
 
     def touched_down(self, mass_kg: float) -> bool:
-        """Never: the set-down goes to the object's exact resting height."""
-        return False
+        """Whether something below the held object of ``mass_kg`` carries at least :data:`TOUCH_DOWN_FRACTION` of
+        its weight (the pads' exact vertical force against its weight and vertical acceleration).
+
+        The set-down goes to the object's resting height as it sat in the hand when the descent was aimed; an
+        object that turned in the grip since then (a long one held off its centre of mass creeps about the grip
+        axis) touches down a millimetre or so early, and the stiff arm would press it into the surface short of
+        its target instead of stopping there.
+        """
+        _, load, g_plus_a = self.load_sample()
+        return load < (1.0 - TOUCH_DOWN_FRACTION) * mass_kg * g_plus_a
 
     def _p_tcp_object(self) -> np.ndarray:
         R = self.d.site_xmat[self._tcp].reshape(3, 3)

@@ -25,6 +25,7 @@ for the scene's object. What the skill measures goes into the arm's
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import logging
 import math
@@ -39,7 +40,7 @@ from pickplace.grasping.closure import analyze_grasp
 from pickplace.grasping.configurations import GraspConfigurations, candidate_grasps, solve_grasp_configurations
 from pickplace.grasping.grip import grip_capacity
 from pickplace.grasping.synthesis import GraspCandidate
-from pickplace.grasping.targets import CLEARANCE_M, backed_off, object_yaw, place_targets, yaw_error
+from pickplace.grasping.targets import CLEARANCE_M, PLACE_DROP_M, backed_off, object_yaw, place_targets, yaw_error
 from pickplace.motion import control
 from pickplace.motion.control import Payload
 from pickplace.motion.timing import retime
@@ -99,6 +100,7 @@ class PickPlaceSkill:
         self._backed_off_m = 0.0  # how far the hand backed off after the release to look at the object (m)
         self._release_t = math.nan
         self._dropped: list[GraspCandidate] = []  # grasps given up on (no path to them), not tried again
+        self._carried_on = False  # a slip in transit was answered by carrying on with the grip as it had become
         self._object_names = frozenset(object_geom_names(arm.robot.scene.object))
 
     def _object_pose(self) -> pin.SE3:
@@ -356,7 +358,8 @@ class PickPlaceSkill:
         tcp, obj = self.arm.tcp_pose(), self._object_pose()
         self.arm.T_tcp_object = tcp.actInv(obj)
         preplace, place = place_targets(self.robot.scene, tcp, obj, self.configs.targets.R_world_object_goal,
-                                        self.configs.targets.preplace_height_m)
+                                        self.configs.targets.preplace_height_m,
+                                        R_world_tcp_planned=self.configs.targets.place.rotation)
         finger = gripper.finger_travel(self.robot, self.d)
         carry_ik = self.arm.carrying(self.cfg.planning_margin_m, False)  # the planner accepts it as a goal
         place_ik = self.arm.carrying(0.0, True)
@@ -384,7 +387,8 @@ class PickPlaceSkill:
         self._note_estimate("in hand")
         tcp, obj = self.arm.tcp_pose(), self._object_pose()
         preplace, place = place_targets(self.robot.scene, tcp, obj, self.configs.targets.R_world_object_goal,
-                                        self.configs.targets.preplace_height_m)
+                                        self.configs.targets.preplace_height_m,
+                                        R_world_tcp_planned=self.configs.targets.place.rotation)
         finger = gripper.finger_travel(self.robot, self.d)
         aim = solve_ik(self.robot, preplace, self.arm.q, "preplace", self.ik, finger_m=finger)
         self.arm.note_ik(aim)
@@ -555,22 +559,83 @@ class PickPlaceSkill:
         contact = isinstance(exc, UnexpectedContact)
         if contact:
             self.out.unexpected_contacts.extend(p for p in exc.pairs if p not in self.out.unexpected_contacts)
-        recovery = recovery_for(phase, exc, contact and self._touches_object(exc))
-        if not self.budget.admits(phase, exc, may_repeat=recovery is not None and recovery.next_grasp):
-            return None
+        held = isinstance(exc, GraspFailed) and not self._carried_on and self._still_held()
+        recovery = recovery_for(phase, exc, contact and self._touches_object(exc), still_held=held,
+                                at_lift=self._at_lift())
         if recovery is None:
+            return None
+        if not self.budget.admits(phase, exc, may_repeat=recovery.next_grasp, action=recovery.action):
             return None
         if recovery.next_grasp and self.configs is not None:
             self._dropped.append(self.configs.chosen)
+        if recovery.regrip:
+            self._carried_on = True
+            self.monitor.start_holding(self.d)  # the grip as it has become: the stop must not trip on it again
         if recovery.first is FirstMove.STOP:
             self.arm.stop()  # before planning from where the arm stands
         elif recovery.first is FirstMove.BACK_OFF:
             self.arm.back_off()
-        self.budget.spend(phase, exc)
+        elif recovery.first is FirstMove.PUT_BACK:
+            self._put_back()
+        self.budget.spend(phase, exc, recovery.action)
         note = f"{phase.value}: {type(exc).__name__}: {exc} -> {recovery.action}"
         self.out.recoveries.append(note)
         log.info("recovery %d/%d: %s", self.budget.used, self.budget.max_retries, note)
         return recovery.next_phase
+
+    def _at_lift(self) -> bool:
+        """Whether the arm holds the object where the lift left it: straight above its grasp (within 1 mm), the
+        hand as it grasped (within 0.01 rad), and it has not carried on after a slip."""
+        if self.configs is None or self.arm.payload is None or self._carried_on:
+            return False
+        tcp, grasp = self.arm.tcp_pose(), self.configs.targets.grasp
+        off = tcp.translation - grasp.translation
+        turn = float(np.linalg.norm(pin.log3(grasp.rotation.T @ tcp.rotation)))
+        return bool(np.hypot(off[0], off[1]) < 0.001 and off[2] > 0.0 and turn < 0.01)
+
+    def _put_back(self) -> None:
+        """Set the held object back down where it was picked (the lift reversed, guarded like a set-down), let go,
+        wait for the pads to clear it, and back the hand off along the approach."""
+        assert self.configs is not None
+        robot, d, cfg, monitor, observer = self.robot, self.d, self.cfg, self.monitor, self.observer
+        targets = self.configs.targets
+        mass_kg = self.arm.payload.mass_kg if self.arm.payload is not None else 0.0
+        z_grasp = float(targets.grasp.translation[2])
+
+        def hook(d: mujoco.MjData) -> None:
+            if float(self.arm.tcp_pose().translation[2]) < z_grasp + 0.003:
+                monitor.allow_object_table = True  # setting it down
+                observer.expect_load(None)
+            monitor(d)
+            if monitor.allow_object_table and observer.touched_down(mass_kg):
+                raise _SetDown
+
+        log.info("recovery: setting the %s back down where it was picked", robot.scene.object.name)
+        with contextlib.suppress(_SetDown):  # the table carries it: no need to go further
+            self.arm.vertical(Phase.PLAN_TRANSPORT, z_grasp + PLACE_DROP_M, hook)
+        monitor.holding = False
+        monitor.allow_object_table = True
+        self.arm.payload = None
+        observer.expect_load(None)
+        gripper.command(robot, d, False)
+        observer.released()
+        clear_travel = gripper.GripperGeometry.measure(robot).contact_travel_m(targets.width_m) - \
+            cfg.release_clearance_m
+
+        def cleared() -> bool:
+            return gripper.finger_travel(robot, d) <= clear_travel and not np.any(observer.pad_forces() > 0.0)
+
+        if not self.arm.hold_until(self.arm.q, cleared, cfg.release_timeout_s, min_s=cfg.poll_s):
+            raise PhaseFailed(Phase.PLAN_TRANSPORT, f"the pads did not clear the {robot.scene.object.name} set back "
+                                                    f"down within {cfg.release_timeout_s:g} s")
+        self.arm.linear(Phase.PLAN_TRANSPORT, backed_off(self.arm.tcp_pose(), CLEARANCE_M).translation)
+        monitor.allow_hand_object = False
+
+    def _still_held(self) -> bool:
+        """Whether the robot senses the object in the hand: both pads squeezing it with at least the force a
+        settled grip needs, and (a wrist sensor) its weight still carried."""
+        forces = self.observer.pad_forces()
+        return bool(np.all(forces >= self.cfg.min_pad_force_n)) and self.observer.grip_lost() is None
 
     def _touches_object(self, exc: UnexpectedContact) -> bool:
         """Whether every pair of the contact involves the object."""

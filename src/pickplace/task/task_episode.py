@@ -33,7 +33,7 @@ from pickplace.task.faults import FaultConfig
 from pickplace.task.observe import SimulatorObserver
 from pickplace.task.phases import Phase
 from pickplace.task.skill import PickPlaceSkill
-from pickplace.task.tasks import Pick, TaskKind, TaskPlanner, TaskStuck, bottom_z_m, top_z_m
+from pickplace.task.tasks import Pick, TaskKind, TaskPlanner, TaskStuck, bottom_z_m, check_reachable, top_z_m
 from pickplace.task.telemetry import Telemetry, TelemetryRecorder
 from pickplace.world.config import SceneConfig
 
@@ -244,6 +244,7 @@ def run_task(config: EpisodeConfig, seed: int = 0, *, record: bool = False, fram
         raise ConfigError("faults", "...", "faults are injected into single pick and places (run_episode), not tasks")
     task = config.task
     task.check_scene(config.scene)
+    check_reachable(config.scene, task.kind, config.machine.planning_margin_m)
     t_wall0 = time.perf_counter()
     world = config.scene
     robot = build(world)
@@ -292,8 +293,9 @@ def _did_not_start(result: EpisodeResult) -> bool:
 #: Failures of IDLE that leave everything as it was: no grasp or place reaches, or the chosen goal does not suit
 #: the object (a spot the planner chose on the bin's wall).
 _NOT_STARTED = ("UnreachableTarget", "TurnsOver", "ConfigError", "InsideObstacle")
-#: The planner's failures (:class:`~pickplace.errors.PlanningFailed` and its kinds).
-_PLANNING_FAILED = ("PlanningFailed", "SearchExhausted")
+#: The planner's failures (:class:`~pickplace.errors.PlanningFailed` and its kinds), and a planned path the time
+#: scaling could not keep clear (:class:`~pickplace.errors.TimingFailed`).
+_PLANNING_FAILED = ("PlanningFailed", "SearchExhausted", "TimingFailed")
 
 
 class _TaskRun:

@@ -314,8 +314,12 @@ class TaskPlanner:
             if spot is not None:
                 self.buffered.add(name)
                 return Pick(name, spot)
-        raise TaskStuck(f"no pick can start: {', '.join(pending)} each wait for another's goal to be freed, and no "
-                        "free buffer spot is left")
+        stuck = [n for n in pending if n in skip]
+        waiting = [n for n in pending if n not in skip]
+        why = ([f"{', '.join(stuck)} cannot be picked and placed from where they are"] if stuck else []) + \
+            ([f"{', '.join(waiting)} wait for another's goal to be freed, and no free buffer spot is left"]
+             if waiting else [])
+        raise TaskStuck(f"no pick can start: {'; '.join(why)}")
 
     def _own_goal(self, name: str) -> Goal:
         o = self.objects[name]
@@ -421,6 +425,52 @@ class TaskPlanner:
         return Goal((x, y), yaw, scene.table_height_m, label="buffer")
 
 
+def check_reachable(scene: SceneConfig, kind: str, clearance_m: float, upright: bool = False) -> None:
+    """Raise :class:`ConfigError` naming the first object the arm cannot pick where it starts, or (``place``) set
+    down at its goal, each alone on the table with the bin and the obstacle (the other objects move while a task
+    runs): its reachable workspace, which depends on its size and its grasps.
+
+    Args:
+        scene: The scene with its objects.
+        kind: The task (``place`` checks the goals too).
+        clearance_m: Clearance the pregrasp, lift, preplace and retreat keep from the table and obstacles (m): the
+            planner's margin.
+        upright: A goal reached only by turning the object over on the way (another IK branch) counts as out of
+            reach.
+    """
+    from pickplace.errors import CannotHold, UnreachableTarget
+    from pickplace.grasping.configurations import (
+        candidate_grasps,
+        feasible_grasps,
+        solve_grasp_configurations,
+        start_pose,
+    )
+    from pickplace.robot.model import build
+
+    for o in scene.objects:
+        goal = o.goal_xy_m if kind == TaskKind.PLACE else None
+        single = dataclasses.replace(scene, object=o.object, start_xy_m=o.start_xy_m, start_yaw_rad=o.start_yaw_rad,
+                                     goal_xy_m=goal if goal is not None else scene.goal_xy_m,
+                                     goal_yaw_rad=o.goal_yaw_rad if goal is not None else scene.goal_yaw_rad,
+                                     others=())
+        robot = build(single)
+        if goal is None:
+            grasps = candidate_grasps(robot, start_pose(robot))
+            if not any(feasible_grasps(robot, grasps[k:k + 8], clearance_m=clearance_m)
+                       for k in range(0, len(grasps), 8)):  # in ranked order, up to the first that reaches
+                raise ConfigError(f"objects.{o.name}.start_xy_m", tuple(o.start_xy_m),
+                                  f"out of the arm's reach for the {o.name}: no grasp reaches it there collision free")
+            continue
+        try:
+            solve_grasp_configurations(robot, clearance_m=clearance_m, turn_over=not upright)
+        except (UnreachableTarget, CannotHold) as exc:
+            field = "goal_xy_m" if exc.target in ("preplace", "place", "retreat") else "start_xy_m"
+            where = goal if field == "goal_xy_m" else o.start_xy_m
+            raise ConfigError(f"objects.{o.name}.{field}", tuple(where),
+                              f"out of the arm's reach for the {o.name}{' carried upright' if upright else ''}: "
+                              f"{exc}") from None
+
+
 #: Library objects a random ``stack`` draws from: flat on top and bottom.
 STACKABLE = ("cube", "gelatin_box", "soda_can")
 #: Where random objects start and (``place``) go: well inside the arm's reach on the default table (x, y) (m).
@@ -429,12 +479,16 @@ RANDOM_REGION_XY_M = ((0.28, -0.10), (0.62, 0.40))
 RANDOM_GOAL_REGION_XY_M = ((0.28, -0.40), (0.62, 0.40))
 #: Gap kept between random objects' footprints (m): room for the fingers around each.
 RANDOM_GAP_M = 0.05
+#: Draws of a whole random task scene before giving up on one whose objects the arm reaches.
+REACH_DRAWS = 50
 
 
 def random_task_scene(kind: str, n: int, rng: np.random.Generator, base: SceneConfig | None = None,
-                      names: tuple[str, ...] | None = None, swap: bool = True, tries: int = 2000) -> SceneConfig:
+                      names: tuple[str, ...] | None = None, swap: bool = True, tries: int = 2000,
+                      clearance_m: float = 0.01) -> SceneConfig:
     """A scene of ``n`` library objects for a task, drawn at random: starts (and goals) at free spots, any yaw
-    within ±45°.
+    within ±45°, each object's start (and goal) within its reachable workspace carried upright
+    (:func:`check_reachable`; the whole draw is repeated otherwise, up to :data:`REACH_DRAWS` times).
 
     Args:
         kind: The task (``stack`` draws from :data:`STACKABLE`, ``clear`` adds the default bin).
@@ -444,6 +498,7 @@ def random_task_scene(kind: str, n: int, rng: np.random.Generator, base: SceneCo
         names: Library objects to draw from; default: the whole library (``stack``: :data:`STACKABLE`).
         swap: For ``place``, the first two objects trade places (each one's goal is the other's start).
         tries: Draws per object before giving up.
+        clearance_m: The planner's margin the reachability check keeps (m).
 
     Raises:
         ConfigError: ``n`` is out of range, or the objects do not fit on the table.
@@ -461,6 +516,7 @@ def random_task_scene(kind: str, n: int, rng: np.random.Generator, base: SceneCo
     objs = [dataclasses.replace(o, name=f"{o.name}_{i + 1}") for i, o in enumerate(chosen)]
     starts: list[tuple[np.ndarray, float]] = []
     goals: list[tuple[np.ndarray, float]] = []
+    last: ConfigError | None = None
     avoid = [bin_.outer_box_xy_m] if bin_ is not None else []
     if base.obstacle:
         avoid.append(base.obstacle_box_xy_m)
@@ -481,30 +537,40 @@ def random_task_scene(kind: str, n: int, rng: np.random.Generator, base: SceneCo
         raise ConfigError("--objects", n, f"{n} objects do not fit at random on the table (gap "
                                           f"{RANDOM_GAP_M * 1e3:.0f} mm)")
 
-    for o in objs:
-        starts.append(draw(o, RANDOM_REGION_XY_M, [(q, p, y) for q, (p, y) in zip(objs, starts, strict=False)]))
-    if kind == TaskKind.PLACE:
-        first = 0
-        if swap and n >= 2:
-            goals = [starts[1], starts[0]]
-            first = 2
-        avoid_goals = list(goals)
-        for o in objs[first:]:
-            taken = [(q, p, y) for q, (p, y) in zip(objs, avoid_goals, strict=False)]
-            goals.append(draw(o, RANDOM_GOAL_REGION_XY_M, taken))
-            avoid_goals.append(goals[-1])
-    others = []
-    for i, o in enumerate(objs):
-        (xy, yaw) = starts[i]
-        goal = goals[i] if goals else None
-        others.append(SceneObject(o, (float(xy[0]), float(xy[1])), yaw,
-                                  None if goal is None else (float(goal[0][0]), float(goal[0][1])),
-                                  0.0 if goal is None else goal[1]))
-    first_obj = others[0]
-    return dataclasses.replace(
-        base, object=first_obj.object, start_xy_m=first_obj.start_xy_m, start_yaw_rad=first_obj.start_yaw_rad,
-        goal_xy_m=first_obj.goal_xy_m if first_obj.goal_xy_m is not None else base.goal_xy_m,
-        goal_yaw_rad=first_obj.goal_yaw_rad, others=tuple(others[1:]), bin=bin_)
+    for _ in range(REACH_DRAWS):
+        starts, goals = [], []
+        for o in objs:
+            starts.append(draw(o, RANDOM_REGION_XY_M, [(q, p, y) for q, (p, y) in zip(objs, starts, strict=False)]))
+        if kind == TaskKind.PLACE:
+            first = 0
+            if swap and n >= 2:
+                goals = [starts[1], starts[0]]
+                first = 2
+            avoid_goals = list(goals)
+            for o in objs[first:]:
+                taken = [(q, p, y) for q, (p, y) in zip(objs, avoid_goals, strict=False)]
+                goals.append(draw(o, RANDOM_GOAL_REGION_XY_M, taken))
+                avoid_goals.append(goals[-1])
+        others = []
+        for i, o in enumerate(objs):
+            (xy, yaw) = starts[i]
+            goal = goals[i] if goals else None
+            others.append(SceneObject(o, (float(xy[0]), float(xy[1])), yaw,
+                                      None if goal is None else (float(goal[0][0]), float(goal[0][1])),
+                                      0.0 if goal is None else goal[1]))
+        first_obj = others[0]
+        scene = dataclasses.replace(
+            base, object=first_obj.object, start_xy_m=first_obj.start_xy_m, start_yaw_rad=first_obj.start_yaw_rad,
+            goal_xy_m=first_obj.goal_xy_m if first_obj.goal_xy_m is not None else base.goal_xy_m,
+            goal_yaw_rad=first_obj.goal_yaw_rad, others=tuple(others[1:]), bin=bin_)
+        try:  # within each object's reachable workspace, carried upright (a place's goals too)
+            check_reachable(scene, kind, clearance_m, upright=True)
+        except ConfigError as exc:
+            last = exc
+            continue
+        return scene
+    raise ConfigError("--objects", n, f"no draw of {n} objects whose starts (and goals) the arm reaches in "
+                                      f"{REACH_DRAWS} draws (last: {last})")
 
 
 #: Room a buffer spot leaves around another object's goal besides the spot clearance (m): the open fingers reach
@@ -525,5 +591,5 @@ class TaskStuck(PickPlaceError):
     """No pick of the task can start (every remaining object waits for another, or cannot be grasped)."""
 
 
-__all__ = ["RANDOM_GAP_M", "STACKABLE", "Goal", "Pick", "TaskConfig", "TaskKind", "TaskOrder", "TaskPlanner",
-           "TaskStuck", "bottom_z_m", "random_task_scene", "top_z_m"]
+__all__ = ["RANDOM_GAP_M", "REACH_DRAWS", "STACKABLE", "Goal", "Pick", "TaskConfig", "TaskKind", "TaskOrder",
+           "TaskPlanner", "TaskStuck", "bottom_z_m", "check_reachable", "random_task_scene", "top_z_m"]
