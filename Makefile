@@ -10,7 +10,12 @@ STAMP  := $(VENV)/.installed
 LOCK   := constraints.txt
 PIP    := $(BIN)/python -m pip install --quiet --constraint $(LOCK)
 
-.PHONY: run test lint bench lock clean
+.PHONY: run test lint bench bench-env lock clean
+
+# robosuite's own venv for `pickplace bench env --robosuite` (robosuite pins its own mujoco, numba and numpy: never in
+# pickplace's venv); the versions in benchmarks/robosuite-constraints.txt
+RS_VENV  := .bench-venv/robosuite
+RS_STAMP := $(RS_VENV)/.installed
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -33,6 +38,17 @@ bench: $(STAMP)
 	$(PIP) -e ".[dev,bench]"
 	$(BIN)/pickplace bench planning
 
+$(RS_STAMP): benchmarks/robosuite-constraints.txt
+	rm -rf $(RS_VENV)
+	$(PYTHON) -m venv $(RS_VENV)
+	$(RS_VENV)/bin/python -m pip install --quiet --upgrade pip
+	$(RS_VENV)/bin/python -m pip install --quiet --constraint benchmarks/robosuite-constraints.txt robosuite mujoco
+	touch $@
+
+# the Gymnasium environments' speed next to robosuite's Lift in the same run, and the skill level's success
+bench-env: $(STAMP) $(RS_STAMP)
+	$(BIN)/pickplace bench env --robosuite $(RS_VENV)/bin/python
+
 lock:
 	rm -rf .lock-venv
 	$(PYTHON) -m venv .lock-venv
@@ -44,4 +60,4 @@ lock:
 	rm -rf .lock-venv
 
 clean:
-	rm -rf $(VENV) .lock-venv .pytest_cache .ruff_cache build src/*.egg-info
+	rm -rf $(VENV) .lock-venv .bench-venv .pytest_cache .ruff_cache build src/*.egg-info

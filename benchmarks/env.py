@@ -1,8 +1,10 @@
-"""Gymnasium environment benchmark: env steps per second and real-time factor at both action levels, and the
-skill level's success over seeded episodes.
+"""Gymnasium environment benchmark: env steps per second and real-time factor at both action levels, next to
+robosuite's Lift measured in the same run, and the skill level's success over seeded episodes.
 
-Run ``python benchmarks/env.py [--json] [--episodes N] [--steps N] [--rate HZ] [--profile P]``. The
-implementation lives in :mod:`pickplace.eval.bench.env`.
+Run ``python benchmarks/env.py [--json] [--episodes N] [--steps N] [--rate HZ ...] [--rounds R] [--profile P]
+[--robosuite [PYTHON]] [--robosuite-rates HZ ...]``; ``make bench-env`` first makes robosuite's own venv
+(``.bench-venv/robosuite``, from ``benchmarks/robosuite-constraints.txt``) and passes it. The implementation lives
+in :mod:`pickplace.eval.bench.env`.
 """
 
 import sys

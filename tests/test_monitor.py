@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import mujoco
+import numpy as np
+import pytest
 
 from pickplace.robot.model import Robot
-from pickplace.task.monitor import StepMonitor
+from pickplace.task.faults import FaultConfig, FaultInjector
+from pickplace.task.monitor import StepMonitor, UnexpectedContact
 
 
 def _ids(robot: Robot) -> dict[str, int]:
@@ -61,3 +64,43 @@ def test_a_falling_object_may_land_on_the_arm_only_while_it_falls(robot: Robot) 
     assert mon.allowed(mon.cls[g["arm"]], mon.cls[g["object"]])
     assert mon.allowed(mon.cls[g["pad"]], mon.cls[g["object"]])
     assert not mon.allowed(mon.cls[g["arm"]], mon.cls[g["table"]])  # the arm itself still touches nothing
+
+
+def _resting_on_the_table(robot: Robot) -> mujoco.MjData:
+    """The default scene with the object settled on the table (object-table contacts, nothing else)."""
+    d = robot.make_data()
+    for _ in range(50):
+        mujoco.mj_step(robot.mj, d)
+    return d
+
+
+def test_a_flag_change_makes_the_monitor_look_at_unchanged_contacts_again(robot: Robot) -> None:
+    """The monitor looks at the contacts only when they or its flags change: the same object-table contacts,
+    allowed while the object rests, are a fault as soon as it is held (and the same contacts again are not)."""
+    d = _resting_on_the_table(robot)
+    assert d.ncon > 0
+    mon = StepMonitor(robot, None, slip_tolerance_m=0.005)
+    mon.allow_object_table = False
+    mon(d)  # not held: allowed
+    mon(d)  # the same contacts: not looked at again
+    mon.holding = True  # looked at again, and now a fault
+    with pytest.raises(UnexpectedContact, match="unexpected contact"):
+        mon(d)
+    mon.holding = False
+    mon(d)
+
+
+def test_a_fault_injector_without_a_push_is_not_called(robot: Robot) -> None:
+    """Without a push configured, the injector would only write a zero force every step: the monitor skips it."""
+    quiet = FaultInjector(robot, FaultConfig())
+    pushing = FaultInjector(robot, FaultConfig(transport_push_n=(0.0, 0.0, -40.0), transport_push_s=0.05))
+    assert not quiet.pushes and pushing.pushes
+    assert not StepMonitor(robot, None, 0.005, quiet)._inject
+    assert StepMonitor(robot, None, 0.005, pushing)._inject
+    mon = StepMonitor(robot, None, 0.005)
+    mon.injector = pushing  # as task_episode wraps it: set later
+    assert mon._inject
+    d = robot.make_data()
+    d.xfrc_applied[robot.handles.object_body, :3] = 1.0
+    StepMonitor(robot, None, 0.005, quiet)(d)
+    assert np.array_equal(d.xfrc_applied[robot.handles.object_body, :3], np.ones(3))  # not touched

@@ -668,10 +668,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--object", metavar="NAME", help="a library object (see `pickplace objects`); default: the cube")
     p.set_defaults(func=_cmd_inspect)
 
-    p = sub.add_parser("bench", help="benchmarks: planning (vs OMPL), control (vs bare mj_step), campaign (scaling), "
-                                     "perception (camera pose error), sensing (success and place error vs camera "
-                                     "noise and calibration), env (the Gymnasium environments' speed and success)")
-    p.add_argument("name", choices=["planning", "control", "campaign", "perception", "sensing", "tasks", "env"],
+    p = sub.add_parser("bench", help="benchmarks: planning (vs OMPL), control (vs bare mj_step), loop (whole episodes "
+                                     "vs a bare mj_step replay of their torques), campaign (scaling; --memory: "
+                                     "workers' memory), perception (camera pose error), sensing (success and place "
+                                     "error vs camera noise and calibration), env (the Gymnasium environments' speed "
+                                     "and success)")
+    p.add_argument("name", choices=["planning", "control", "loop", "campaign", "perception", "sensing", "tasks", "env"],
                    help="which benchmark")
     p.add_argument("bench_args", nargs=argparse.REMAINDER,
                    help="options of the benchmark (e.g. --json; planning: --quick, --queries N, --budget S, "

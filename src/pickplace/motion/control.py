@@ -53,6 +53,8 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 import pinocchio as pin
+from scipy.linalg.lapack import dgetrf as _getrf
+from scipy.linalg.lapack import dgetri as _getri
 
 from pickplace.errors import ConfigError, ControlError
 from pickplace.motion.loop import IDEAL, ControlLoop
@@ -73,7 +75,8 @@ _MIN_JERK_PEAK_ACCEL = 10.0 / math.sqrt(3.0)
 
 #: Armature (kg) given to the finger slides in the controller's model, so that ``computeMinverse``'s arm block
 #: is the inverse of the arm's inertia with the fingers locked (they are held by their servo or squeezed on
-#: the object). It changes nothing else the laws use: finger accelerations are zero in every call.
+#: the object). The laws themselves use the arm block of ``M`` (``crba``), which is that inertia whatever the
+#: fingers' armature, and zero finger accelerations: it changes nothing they compute.
 LOCKED_FINGER_ARMATURE = 1e9
 
 #: Window (s) over which a realistic loop measures the tcp's speed for the settle test of a straight move: the
@@ -596,6 +599,13 @@ def cartesian_impedance(
     With an exact model the tcp error obeys ``Lambda e'' + D e' + K e = 0`` (the orientation reference is
     fixed).
 
+    The UR5e's tcp Jacobian is square (6 joints, 6 task axes), so the law is evaluated through ``J^-1``:
+    ``Lambda = (J M^-1 J^T)^-1 = J^-T M J^-1``, ``J^T Lambda = M J^-1``, and the null space is empty:
+    ``N^T = I - J^T Lambda J M^-1 = I - M J^-1 J M^-1 = 0``, so the posture term is exactly zero and is not
+    computed (``q_posture``, ``posture_kp`` and ``posture_kd`` are kept for a redundant arm). One 6 x 6 LU
+    inverse and ``M`` from ``crba`` replace ``M^-1`` and the inverse of ``J M^-1 J^T``; the torques agree with
+    that form to rounding (about 1e-9 relative at the worst-conditioned poses, ``tests/test_control.py``).
+
     Args:
         arm: The controller's model.
         q, qd: Measured arm positions (6,) (rad) and velocities (6,) (rad/s).
@@ -617,52 +627,83 @@ def cartesian_impedance(
         The torques and the measured tcp error, twist and position.
 
     Raises:
-        numpy.linalg.LinAlgError: ``J M^-1 J^T`` is singular (the arm is at a kinematic singularity).
+        numpy.linalg.LinAlgError: ``J`` is singular (the arm is at a kinematic singularity).
     """
+    v6, a6 = np.zeros(6), np.zeros(6)
+    v6[:3] = v_ref
+    a6[:3] = a_ref
+    return _cartesian_law(arm, q, qd, p_ref, v6, a6, R_ref, stiffness, damping_ratio, finger_m, integral, modal_damping,
+                          bandwidth_rad_s)
+
+
+def _cartesian_law(arm: ArmModel, q: np.ndarray, qd: np.ndarray, p_ref: np.ndarray, v6_ref: np.ndarray,
+                   a6_ref: np.ndarray, R_ref: np.ndarray, stiffness: np.ndarray, damping_ratio: float,
+                   finger_m: float, integral: np.ndarray | None, modal_damping: bool,
+                   bandwidth_rad_s: float) -> CartesianCommand:
+    """:func:`cartesian_impedance` with the reference twist and acceleration as 6-vectors (rotation parts 0)."""
     model, data, fid = arm.model, arm.data, arm.tcp_frame
-    qp, vp = arm._q, arm._v
+    qp, vp = arm._q, arm._v  # vp[N_ARM:] (the fingers) stays 0: no law writes it
     qp[:N_ARM] = q
     qp[N_ARM:] = finger_m
     vp[:N_ARM] = qd
-    vp[N_ARM:] = 0.0
-    # one pass: kinematics with zero joint acceleration (so the frame's classical acceleration is Jdot qd),
-    # joint Jacobians, M and C(q, qd) qd + g(q); then M^-1 with the finger slides locked (see arm_model)
-    pin.computeAllTerms(model, data, qp, vp)
-    jdot_qd = pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED).vector
-    J = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[:, :N_ARM]
+    # what the law needs and nothing more: kinematics with zero joint acceleration (so the frame's classical
+    # acceleration is Jdot qd), the joint Jacobians from them, M (upper triangle) and C(q, qd) qd + g(q)
+    pin.forwardKinematics(model, data, qp, vp, arm._zero)
+    jdot_qd = pin.getFrameClassicalAcceleration(model, data, fid, _LWA).vector
+    pin.computeJointJacobians(model, data)
+    J = pin.getFrameJacobian(model, data, fid, _LWA)[:, :N_ARM]
     T = pin.updateFramePlacement(model, data, fid)
-    nle = data.nle[:N_ARM].copy()
-    Minv = pin.computeMinverse(model, data, qp)[:N_ARM, :N_ARM]
+    M = pin.crba(model, data, qp)[:N_ARM, :N_ARM]
+    nle = pin.nonLinearEffects(model, data, qp, vp)[:N_ARM]
+    X = _inverse(J)  # J^-1; raises LinAlgError at a singularity
+    MX = np.where(_UPPER, M, M.T) @ X  # crba fills the upper triangle: M J^-1 = J^T Lambda
+    Lam = X.T @ MX
 
     position = T.translation.copy()
-    error = np.empty(6)
-    error[:3] = p_ref - position
-    error[3:] = pin.log3(R_ref @ T.rotation.T)
+    error = np.concatenate((p_ref - position, pin.log3(R_ref @ T.rotation.T)))
     twist = J @ qd
-    edot = -twist
-    edot[:3] += v_ref
-    acc = -jdot_qd
-    acc[:3] += a_ref
+    edot = v6_ref - twist
+    acc = a6_ref - jdot_qd
 
-    JMinv = J @ Minv  # J M^-1 (6, 6)
-    Lam = np.linalg.inv(JMinv @ J.T)
-    tau0 = posture_kp * (q_posture - q) - posture_kd * qd
-    # J^T F + N^T tau0 with N^T = I - J^T Lambda J M^-1
+    # J^T F with F = Lambda (a_d - Jdot qd) + ...: J^T Lambda = M J^-1; the null-space term N^T tau_posture is 0
     if bandwidth_rad_s > 0.0:
         w = bandwidth_rad_s
-        F = Lam @ (acc - JMinv @ tau0 + (w * w) * error + (2.0 * damping_ratio * w) * edot)
-    elif modal_damping:
-        F = Lam @ (acc - JMinv @ tau0) + stiffness * error + modal_damping_matrix(Lam, stiffness, damping_ratio) @ edot
+        tau = MX @ (acc + (w * w) * error + (2.0 * damping_ratio * w) * edot)
+        if integral is not None:
+            tau += integral @ J  # J^T integral
     else:
-        d = 2.0 * damping_ratio * np.sqrt(stiffness * np.abs(Lam.diagonal()))
-        F = Lam @ (acc - JMinv @ tau0) + stiffness * error + d * edot
-    if integral is not None:
-        F += integral
-    tau = J.T @ F
-    tau += tau0
+        if modal_damping:
+            F = stiffness * error + modal_damping_matrix(Lam, stiffness, damping_ratio) @ edot
+        else:
+            F = stiffness * error + (2.0 * damping_ratio * np.sqrt(stiffness * np.abs(Lam.diagonal()))) * edot
+        if integral is not None:
+            F += integral
+        tau = MX @ acc
+        tau += F @ J  # J^T F
     tau += nle
     tau += arm.damping * qd
     return CartesianCommand(tau, error, twist, position, Lam)
+
+
+_LWA = pin.LOCAL_WORLD_ALIGNED
+#: The upper triangle of a 6 x 6 matrix (with the diagonal): where ``pin.crba`` writes ``M``.
+_UPPER = np.triu(np.ones((N_ARM, N_ARM), dtype=bool))
+
+
+def _inverse(a: np.ndarray) -> np.ndarray:
+    """The inverse of a small square matrix by LAPACK's LU (``getrf``/``getri``), without the checks and the
+    broadcasting of ``numpy.linalg.inv`` (a third of its cost at 6 x 6).
+
+    Raises:
+        numpy.linalg.LinAlgError: ``a`` is singular.
+    """
+    lu, piv, info = _getrf(a)
+    if info != 0:
+        raise np.linalg.LinAlgError("singular matrix")
+    inv, info = _getri(lu, piv)
+    if info != 0:
+        raise np.linalg.LinAlgError("singular matrix")
+    return inv
 
 
 def modal_damping_matrix(inertia: np.ndarray, stiffness: np.ndarray, damping_ratio: float) -> np.ndarray:
@@ -685,6 +726,11 @@ def modal_damping_matrix(inertia: np.ndarray, stiffness: np.ndarray, damping_rat
     k0, V = np.linalg.eigh((Linv * stiffness) @ Linv.T)
     Q = L @ V
     return (Q * (2.0 * damping_ratio * np.sqrt(np.maximum(k0, 0.0)))) @ Q.T
+
+
+#: Below ``1 - 1e-9`` times its bound, a sum of squares guarantees every term is within it (rounding aside by far):
+#: the loops test ``e @ e`` (one call) before looking at each joint's error, and at each torque against its limit.
+_FILTER = 1.0 - 1e-9
 
 
 def saturate(tau: np.ndarray, limits: np.ndarray) -> bool:
@@ -983,33 +1029,59 @@ def _run_joint(
             steps=steps, t=idx * dt, q=q_log[: last + 1].copy(), q_ref=ref,
             tau=np.array(taus[:last]) if last > 0 else np.empty((0, N_ARM)))
 
+    max_err = config.max_joint_error_rad
+    err_filter = max_err * max_err * _FILTER  # e @ e below it: every |e_i| <= max_err (no need to look closer)
+    inv_limits = 1.0 / limits
+    fast = bandwidth == 0.0 and ff and integral is None
+    if fast:  # the reference's terms of the law, for every tick at once (elementwise: the same numbers)
+        model, data, qp = arm.model, arm.data, arm._q
+        vel = np.zeros((n + 1, model.nv))
+        vel[:, :N_ARM] = qd_ref
+        accel = np.zeros((n + 1, model.nv))
+        accel[:, :N_ARM] = qdd_ref
+        damp_ref = arm.damping * qd_ref
+        rnea = pin.rnea
+
+    def check(k: int, e: np.ndarray) -> None:
+        """Raise if the joint error ``e`` (6,) exceeds the limit (or is not finite)."""
+        err = float(abs(e).max())
+        if not err <= max_err:  # also catches NaN
+            raise ControlError(phase, f"joint error {err:.4g} rad exceeds {max_err:g} rad at t = {k * dt:.3f} s",
+                               record(j, k))
+
     def law(k: int, q: np.ndarray, qd: np.ndarray) -> np.ndarray | None:
         nonlocal j, saturated
-        i = min(k, n)
+        i = k if k < n else n
         j += 1
         q_log[j] = q
         k_log[j] = i
         if yielding is not None:
             q_ref[i:] += yielding @ (q - q_ref[i])
-        err = float(abs(q_ref[i] - q).max())
-        if not err <= config.max_joint_error_rad:  # also catches NaN
-            raise ControlError(phase, f"joint error {err:.4g} rad exceeds {config.max_joint_error_rad:g} rad "
-                                      f"at t = {k * dt:.3f} s", record(j, k))
+        e = q_ref[i] - q
+        if not e @ e <= err_filter:
+            check(k, e)
         if k >= n:
             return None
-        if bandwidth > 0.0:
+        if fast:  # joint_impedance(feedforward=True), operation for operation
+            qp[:N_ARM] = q
+            qp[N_ARM:] = qpos[finger]
+            tau = rnea(model, data, qp, vel[i], accel[i])[:N_ARM] + damp_ref[i]
+            tau += kp * e
+            tau += kd * (qd_ref[i] - qd)
+        elif bandwidth > 0.0:
             finger_m = float(qpos[finger])
             inertia = arm_inertia(arm, q, finger_m)
             tau = joint_impedance(arm, q, qd, q_ref[i], qd_ref[i], qdd_ref[i], kp, kd, feedforward=ff,
                                   finger_m=finger_m, bandwidth_rad_s=bandwidth, damping_ratio=zeta_j, inertia=inertia)
             if integral is not None:
-                tau += integral.update(inertia @ (q_ref[i] - q))
+                tau += integral.update(inertia @ e)
         else:
             tau = joint_impedance(arm, q, qd, q_ref[i], qd_ref[i], qdd_ref[i], kp, kd, feedforward=ff,
                                   finger_m=qpos[finger])
             if integral is not None:
-                tau += integral.update(q_ref[i] - q)
-        if saturate(tau, limits):
+                tau += integral.update(e)
+        scaled = tau * inv_limits
+        if not scaled @ scaled <= _FILTER and saturate(tau, limits):
             saturated += 1
         taus.append(tau)
         return tau
@@ -1229,7 +1301,7 @@ def move_linear(
 
     The position follows a minimum-jerk profile along the segment from the current position (duration from
     :meth:`ControlConfig.vertical_duration_s` for its length unless given); the orientation is regulated to
-    the one at the start; the posture at the start is regulated in the null space. The move ends once the
+    the one at the start (the UR5e has no null space left to regulate a posture in). The move ends once the
     profile is over and the tcp is within ``config.height_tolerance_m`` of the target, moving slower than
     ``config.settle_speed_m_s`` (in a realistic loop: its mean speed over :data:`SETTLE_SPEED_WINDOW_S`); it times
     out ``config.settle_timeout_s`` after the profile's end.
@@ -1278,13 +1350,16 @@ def move_linear(
     s, _, _ = min_jerk(np.arange(-1, n_max + 1) * dt, T)
     p_grid = p0 + np.outer(s, delta)
     p_refs, v_refs, a_refs = _grid_reference(p_grid, dt)
+    v6_refs, a6_refs = np.zeros((n_max + 1, 6)), np.zeros((n_max + 1, 6))  # the twist's and acceleration's
+    v6_refs[:, :3] = v_refs
+    a6_refs[:, :3] = a_refs
 
-    stiffness = config.cartesian_stiffness
-    zeta, post_kp, post_kd = config.cartesian_damping_ratio, config.posture_kp_nm_rad, config.posture_kd
+    stiffness, zeta = config.cartesian_stiffness, config.cartesian_damping_ratio
     limits = arm.torque_limits_nm
-    z_log = np.empty(n_max + 1)
     pos_err_log = np.empty(n_max + 1)
     q_log = np.empty((n_max + 1, N_ARM))
+    p_log = np.empty((n_max + 1, 3))  # the tcp position read at each tick (m)
+    e_log = np.empty((n_max + 1, 6))  # the pose error at each tick
     k_log = np.empty(n_max + 1, dtype=np.int64)  # the physics step of each tick
     taus: list[np.ndarray] = []
     bandwidth = config.cartesian_bandwidth_rad_s
@@ -1295,8 +1370,9 @@ def move_linear(
                              config.cartesian_integral_limit, loop.period_s(robot))
     else:
         integral = _Integral(config.cartesian_ki, config.cartesian_integral_limit, loop.period_s(robot))
+    inv_limits = 1.0 / limits
+    modal = config.cartesian_modal_damping
     saturated = 0
-    drift = rot_err = 0.0
     reached = False
     j = -1  # the last row logged
     p = p0.copy()
@@ -1304,49 +1380,47 @@ def move_linear(
     def record(last: int, steps: int, p_now: np.ndarray) -> CartesianRecord:
         pos = pos_err_log[: last + 1]
         idx = k_log[: last + 1]
+        off = p_log[: last + 1] - p0
+        side = off - np.outer(off @ direction, direction)  # off the line
+        r = e_log[: last + 1, 3:]
+        rot = np.sqrt(r[:, 0] * r[:, 0] + r[:, 1] * r[:, 1] + r[:, 2] * r[:, 2])
         return CartesianRecord(
             reached=reached, final_height_error_m=float(p_now[2] - target[2]),
-            final_error_m=float(np.linalg.norm(p_now - target)), lateral_drift_max_m=drift,
-            orientation_error_max_rad=rot_err, position_error_max_m=float(pos.max()),
+            final_error_m=float(np.linalg.norm(p_now - target)),
+            lateral_drift_max_m=float(np.sqrt((side * side).sum(axis=1)).max()) if last >= 0 else 0.0,
+            orientation_error_max_rad=float(rot.max()) if last >= 0 else 0.0, position_error_max_m=float(pos.max()),
             position_error_rms_m=float(np.sqrt(np.mean(pos**2))), saturation_events=saturated,
             duration_s=steps * dt, steps=steps, profile_duration_s=float(T), t=idx * dt,
-            z=z_log[: last + 1].copy(), z_ref=p_refs[idx, 2], q=q_log[: last + 1].copy(),
+            z=p_log[: last + 1, 2].copy(), z_ref=p_refs[idx, 2], q=q_log[: last + 1].copy(),
             tau=np.array(taus[:last]) if last > 0 else np.empty((0, N_ARM)))
 
     tol_p, tol_v, tol_e = config.height_tolerance_m, config.settle_speed_m_s, config.max_tcp_error_m
     # a realistic loop judges the settle speed from the tcp's displacement over SETTLE_SPEED_WINDOW_S (ticks)
     period_s = loop.period_s(robot)
     window = 0 if loop.ideal else max(1, round(SETTLE_SPEED_WINDOW_S / period_s))
-    p_log = np.empty((n_max + 1, 3)) if window else np.empty((0, 3))
 
     def law(k: int, q: np.ndarray, qd: np.ndarray) -> np.ndarray | None:
-        nonlocal j, p, drift, rot_err, reached, saturated
-        i = min(k, n_max)
+        nonlocal j, p, reached, saturated
+        i = k if k < n_max else n_max
         try:
-            cmd = cartesian_impedance(arm, q, qd, p_refs[i], v_refs[i], a_refs[i], R_ref, stiffness, zeta,
-                                      q0, post_kp, post_kd, finger_m=qpos[finger],
-                                      integral=None if integral is None else integral.current,
-                                      modal_damping=config.cartesian_modal_damping, bandwidth_rad_s=bandwidth)
-        except np.linalg.LinAlgError as exc:  # J M^-1 J^T singular: the arm is at a kinematic singularity
+            cmd = _cartesian_law(arm, q, qd, p_refs[i], v6_refs[i], a6_refs[i], R_ref, stiffness, zeta,
+                                 qpos[finger], None if integral is None else integral.current, modal, bandwidth)
+        except np.linalg.LinAlgError as exc:  # J is singular: the arm is at a kinematic singularity
             raise ControlError("move_linear", f"singular tcp Jacobian at q = {np.round(q, 4).tolist()} rad",
                                record(j, k - 1, p) if j >= 0 else None) from exc
         j += 1
         p = cmd.position
-        ex, ey, ez, rx, ry, rz = cmd.error.tolist()
-        z_log[j] = p[2]
+        error = cmd.error
         q_log[j] = q
+        p_log[j] = p
+        e_log[j] = error
         k_log[j] = i
-        off = p - p0
-        along = float(off @ direction)
-        drift = max(drift, float(np.linalg.norm(off - along * direction)))  # distance from the line
-        rot_err = max(rot_err, math.sqrt(rx * rx + ry * ry + rz * rz))
+        ex, ey, ez = error[:3].tolist()
         pos_err = math.sqrt(ex * ex + ey * ey + ez * ez)
         pos_err_log[j] = pos_err
         if not pos_err <= tol_e:  # also catches NaN
             raise ControlError("move_linear", f"tcp error {pos_err * 1e3:.3g} mm exceeds {tol_e * 1e3:.3g} mm "
                                               f"at t = {k * dt:.3f} s", record(j, k, p))
-        if window:
-            p_log[j] = p
         if k >= n_profile and float(np.linalg.norm(p - target)) <= tol_p:
             if window:  # the mean speed over the window: the filtered velocity is the encoders' noise here
                 speed = float(np.linalg.norm(p - p_log[j - window])) / (window * period_s) if j >= window \
@@ -1361,8 +1435,9 @@ def move_linear(
             return None
         tau = cmd.tau
         if integral is not None:
-            integral.update(cmd.error if bandwidth == 0.0 else cmd.task_inertia @ cmd.error)
-        if saturate(tau, limits):
+            integral.update(error if bandwidth == 0.0 else cmd.task_inertia @ error)
+        scaled = tau * inv_limits
+        if not scaled @ scaled <= _FILTER and saturate(tau, limits):
             saturated += 1
         taus.append(tau)
         return tau

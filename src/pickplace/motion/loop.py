@@ -16,7 +16,7 @@ The monitor ``hook(d)`` is called after every physics step, ticks or not.
 With :class:`LoopConfig`'s defaults (every field 0, :attr:`LoopConfig.ideal`) the loop is today's ideal one:
 the law reads MuJoCo's exact ``qpos``/``qvel`` every physics step and its torque is applied in that same step.
 The ideal path performs exactly the operations the loops performed before this module existed, in the same
-order, so ideal episodes are unchanged bit for bit.
+order, so ideal episodes are unchanged bit for bit by it.
 """
 
 from __future__ import annotations
@@ -209,16 +209,20 @@ class ControlLoop:
         arm_q, arm_v, arm_u = _selector(h.arm_qpos), _selector(h.arm_dof), _selector(h.arm_actuators)
         ticks = 0
         k = 0
+        step = mujoco.mj_step
         if self.config.ideal:
-            # today's loop, operation for operation: exact state, torque applied in the same step
+            # exact state, torque applied in the same step; the arm's joints are consecutive in qpos and qvel, so
+            # the state is read through two views made once (the law gets views of d's memory, as before)
+            q_view = qpos[arm_q] if isinstance(arm_q, slice) else None
+            v_view = qvel[arm_v] if isinstance(arm_v, slice) else None
             while True:
-                q = qpos[arm_q] if noise is None else qpos[arm_q] + noise.sample()
-                tau = law(k, q, qvel[arm_v])
+                q = (qpos[arm_q] if q_view is None else q_view) if noise is None else qpos[arm_q] + noise.sample()
+                tau = law(k, q, qvel[arm_v] if v_view is None else v_view)
                 if tau is None:
                     return LoopRun(k, ticks)
                 ticks += 1
                 ctrl[arm_u] = tau
-                mujoco.mj_step(m, d)
+                step(m, d)
                 if hook is not None:
                     hook(d)
                 k += 1
@@ -236,8 +240,10 @@ class ControlLoop:
         while True:
             if k % period == 0:
                 q = np.array(qpos[arm_q])
-                if res > 0.0:
-                    q = np.round(q / res) * res
+                if res > 0.0:  # round(q / res) * res, in place
+                    np.divide(q, res, out=q)
+                    np.round(q, out=q)
+                    q *= res
                 if std > 0.0:
                     assert self.rng is not None
                     q += self.rng.normal(0.0, std, N_ARM)
@@ -257,7 +263,7 @@ class ControlLoop:
                 pending.append((k + latency, np.array(tau)))
             while pending and pending[0][0] <= k:
                 ctrl[arm_u] = pending.popleft()[1]
-            mujoco.mj_step(m, d)
+            step(m, d)
             if hook is not None:
                 hook(d)
             k += 1

@@ -263,12 +263,14 @@ def is_settled(robot: Robot, d: mujoco.MjData, speed_tol_m_s: float = 1e-3) -> b
 
 def _pad_object_contacts(robot: Robot, d: mujoco.MjData) -> Iterator[tuple[int, int, bool]]:
     """``(contact index, pad 0 left / 1 right, whether the object is geom2)`` of every pad-object contact."""
+    n = d.ncon
+    if not n:
+        return
     h = robot.handles
     left, right = int(h.pad_geoms[0]), int(h.pad_geoms[1])
     obj = h.object_geom_set
-    for i in range(d.ncon):
-        c = d.contact[i]
-        g1, g2 = int(c.geom1), int(c.geom2)
+    # the geom pairs in one read (a d.contact[i] struct per contact costs a few µs each, and this runs every step)
+    for i, (g1, g2) in enumerate(d.contact.geom[:n].tolist()):
         if g2 in obj and g1 in (left, right):
             yield i, int(g1 == right), True
         elif g1 in obj and g2 in (left, right):
@@ -286,7 +288,7 @@ def pad_load(robot: Robot, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
     for i, pad, object_is_geom2 in _pad_object_contacts(robot, d):
         mujoco.mj_contactForce(robot.mj, d, i, f)
         normal[pad] += f[0]
-        force_on_geom2 = d.contact[i].frame.reshape(3, 3).T @ f[:3]  # frame rows: normal, tangent 1, tangent 2
+        force_on_geom2 = d.contact.frame[i].reshape(3, 3).T @ f[:3]  # frame rows: normal, tangent 1, tangent 2
         total += force_on_geom2 if object_is_geom2 else -force_on_geom2
     return normal, total
 

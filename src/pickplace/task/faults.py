@@ -158,6 +158,13 @@ class FaultInjector:
         self._placed_t0: float | None = None
         self.intruder_placed = False
 
+    @property
+    def pushes(self) -> bool:
+        """Whether a push is configured at all; without one, :meth:`step` only ever writes a zero force."""
+        f = self.faults
+        return bool((f.pre_pick_push_s > 0 and any(f.pre_pick_push_n)) or (f.placed_push_s > 0 and any(f.placed_push_n))
+                    or f.transport_push_s > 0)
+
     def pushing(self, phase: str, t_s: float) -> np.ndarray:
         """The force (3,) (N) on the object at episode time ``t_s`` during ``phase``."""
         f = self.faults

@@ -38,6 +38,7 @@ class ObjectMoved(PickPlaceError):
 # Contact classes of the simulation's geoms, for the per-step contact monitor: _OTHER are the objects a task
 # has besides the one being picked (and the bin's walls and the obstacles are _ENV).
 _ARM, _GRIPPER, _PAD, _OBJECT, _TABLE, _ENV, _OTHER = range(7)
+_N_CLASSES = 7
 
 
 class StepMonitor:
@@ -47,6 +48,11 @@ class StepMonitor:
     as something is wrong: :class:`UnexpectedContact`, :class:`~pickplace.errors.GraspFailed` (slip),
     :class:`ObjectMoved`, or whatever the trajectory predictor raises. The state machine switches the
     checks on and off as the phases require (``allow_*``, ``holding``, ``watching``, ``predictor``).
+
+    The contact check runs every step but looks at the contacts only when their geom pairs differ from those it
+    last found allowed, or a flag that decides what is allowed (``allow_hand_object``, ``object_falling``,
+    ``allow_object_table``, ``holding``) was set to a new value since; it then compares each pair's classes against
+    a table of :meth:`allowed` made once per change of the flags.
 
     Args:
         robot: The models.
@@ -63,7 +69,6 @@ class StepMonitor:
         self.robot = robot
         self.observer = observer
         self.recorder = recorder
-        self.injector = injector
         self.predictor: Callable[[mujoco.MjData, float], None] | None = None  # set while a trajectory runs
         self.predict_every = 50
         self._steps = 0
@@ -85,15 +90,75 @@ class StepMonitor:
         cls[surface_geoms(m, world, robot.scene)] = _TABLE  # the bin's floor, a tower's top: like the table
         cls[h.object_geoms] = _OBJECT
         self.cls = cls
-        self.allow_hand_object = False  # gripper/pads touching the object
-        self.object_falling = False  # a dropped object on its way down may land on the arm too
-        self.allow_object_table = True
-        self.holding = False  # slip is checked
+        self._allowed_table: np.ndarray | None = None  # allowed(a, b) for every pair of classes, under the flags now
+        self._ok_contacts = b""  # the contacts' geom pairs last found allowed under the flags now
+        self._allow_hand_object = False  # gripper/pads touching the object
+        self._object_falling = False  # a dropped object on its way down may land on the arm too
+        self._allow_object_table = True
+        self._holding = False  # slip is checked
         self.tolerate_contacts = False  # backing off a collision: contacts are expected until clear
         self.watching = False  # whether the resting object must stay where it was observed
         self.watch_tolerance_m = 0.005
         self.slip_max_m = 0.0
         self.slip_now_m = 0.0
+        self._inject = True  # whether the injector has anything to do (set with it)
+        self.injector = injector
+
+    # The flags that decide which contacts are allowed: setting one to a new value forgets the contacts found
+    # allowed so far (the per-step check looks at the contacts again only when they or the flags change).
+
+    @property
+    def allow_hand_object(self) -> bool:
+        """Whether the gripper and its pads may touch the object."""
+        return self._allow_hand_object
+
+    @allow_hand_object.setter
+    def allow_hand_object(self, value: bool) -> None:
+        self._set_flag("_allow_hand_object", value)
+
+    @property
+    def object_falling(self) -> bool:
+        """Whether a dropped object is on its way down (it may land on the arm too)."""
+        return self._object_falling
+
+    @object_falling.setter
+    def object_falling(self, value: bool) -> None:
+        self._set_flag("_object_falling", value)
+
+    @property
+    def allow_object_table(self) -> bool:
+        """Whether the object may touch the table while it is held (setting it down)."""
+        return self._allow_object_table
+
+    @allow_object_table.setter
+    def allow_object_table(self, value: bool) -> None:
+        self._set_flag("_allow_object_table", value)
+
+    @property
+    def holding(self) -> bool:
+        """Whether the object is held (slip is checked, and it may touch nothing but the robot's hand)."""
+        return self._holding
+
+    @holding.setter
+    def holding(self, value: bool) -> None:
+        self._set_flag("_holding", value)
+
+    def _set_flag(self, name: str, value: bool) -> None:
+        if getattr(self, name) != value:
+            setattr(self, name, value)
+            self._allowed_table = None
+            self._ok_contacts = b""
+
+    @property
+    def injector(self) -> FaultInjector | None:
+        """The timed faults applied after each step, or None."""
+        return self._injector
+
+    @injector.setter
+    def injector(self, value: FaultInjector | None) -> None:
+        self._injector = value
+        # a FaultInjector without a push only ever writes a zero force: nothing to do then
+        self._inject = value is not None and (not isinstance(value, FaultInjector) or value.pushes)
 
     def start_holding(self, d: mujoco.MjData) -> None:
         """Take the grip as it is now as the reference for slip."""
@@ -130,25 +195,37 @@ class StepMonitor:
             return not self.holding
         return False
 
+    def _check_contacts(self, geoms: np.ndarray) -> None:
+        """Raise :class:`UnexpectedContact` if a contact between the geom pairs (n, 2) is not allowed now."""
+        table = self._allowed_table
+        if table is None:  # the flags changed: allowed() for every pair of classes, once
+            table = self._allowed_table = np.array([[self.allowed(a, b) for b in range(_N_CLASSES)]
+                                                    for a in range(_N_CLASSES)])
+        classes = self.cls[geoms]
+        ok = table[classes[:, 0], classes[:, 1]]
+        if not ok.all():
+            m = self.robot.mj
+            pairs = sorted({tuple(sorted((m.geom(int(a)).name or f"geom{a}", m.geom(int(b)).name or f"geom{b}")))
+                            for a, b in geoms[~ok]})
+            raise UnexpectedContact(pairs, self.t)  # type: ignore[arg-type]
+
     def __call__(self, d: mujoco.MjData) -> None:
         self.t += self.dt
         if self.recorder is not None:
             self.recorder.record(d, self.t, self.phase)
-        if d.ncon and not self.tolerate_contacts:
-            geoms = d.contact.geom[: d.ncon]
-            classes = self.cls[geoms]
-            bad = [(int(g[0]), int(g[1])) for g, c in zip(geoms, classes, strict=True)
-                   if not self.allowed(int(c[0]), int(c[1]))]
-            if bad:
-                m = self.robot.mj
-                pairs = sorted({tuple(sorted((m.geom(a).name or f"geom{a}", m.geom(b).name or f"geom{b}")))
-                                for a, b in bad})
-                raise UnexpectedContact(pairs, self.t)  # type: ignore[arg-type]
-        if self.holding:
+        n = d.ncon
+        if n and not self.tolerate_contacts:
+            geoms = d.contact.geom[:n]
+            key = geoms.tobytes()
+            if key != self._ok_contacts:  # the contacts changed since they were last found allowed
+                self._check_contacts(geoms)
+                self._ok_contacts = key
+        if self._holding:
             sense = self._sense(d)
             slip = sense.slip_m()
             self.slip_now_m = slip
-            self.slip_max_m = max(self.slip_max_m, slip)
+            if slip > self.slip_max_m:
+                self.slip_max_m = slip
             if slip > self.slip_tolerance_m:
                 raise GraspFailed(f"the {self.name} slipped {slip * 1e3:.2f} mm in the grip at t = {self.t:.3f} s "
                                   f"(tolerance {self.slip_tolerance_m * 1e3:.2f} mm)")
@@ -164,8 +241,8 @@ class StepMonitor:
         self._steps += 1
         if self.predictor is not None and self._steps % self.predict_every == 0:
             self.predictor(d, self.t)
-        if self.injector is not None:
-            self.injector.step(d, self.phase, self.t)
+        if self._inject:
+            self._injector.step(d, self.phase, self.t)  # type: ignore[union-attr]
 
 
 __all__ = ["ObjectMoved", "StepMonitor", "UnexpectedContact"]

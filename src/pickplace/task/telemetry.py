@@ -184,7 +184,7 @@ class TelemetryRecorder:
         h = self.robot.handles
         self._t.append(t_s)
         self._phase.append(self._names.setdefault(phase, len(self._names)))
-        self._q.append(d.qpos[h.arm_qpos].copy())
+        self._q.append(d.qpos[h.arm_qpos])  # an index array: already a copy
         self._tcp_pos.append(d.site_xpos[h.tcp_site].copy())
         self._object.append(d.xpos[h.object_body].copy())
         self._force.append(pad_forces(self.robot, d))

@@ -9,10 +9,12 @@ worker and turns it into its results line; an exception raised by the episode be
 
 from __future__ import annotations
 
+import ctypes
 import dataclasses
 import itertools
 import logging
 import math
+import sys
 import time
 import traceback
 from collections.abc import Callable, Mapping
@@ -456,6 +458,32 @@ def execute_trial(run_fn: RunFn, trial: Trial) -> dict[str, Any]:
         log.error("trial %d raised:\n%s", trial.index, traceback.format_exc())
         return worker_failure(trial, type(exc).__name__, f"the episode raised {type(exc).__name__}: {exc}",
                               time.perf_counter() - t0)
+    finally:
+        release_freed_memory()
+
+
+def release_freed_memory() -> bool:
+    """Return the memory the C heap holds free to the operating system (glibc's ``malloc_trim(0)``); a worker calls
+    it after every trial. Returns whether it could (False off glibc, where it does nothing).
+
+    Why: an episode allocates and frees blocks of megabytes from C: MuJoCo models copied for the collision
+    checkers (about 5 MB each, a dozen per episode), their MjData, scene compilations. glibc serves a freed
+    block's size from the heap from then on (its mmap threshold rises to it), the heap fragments, and glibc keeps
+    the freed pages: measured in one worker, its resident memory rose from 300 MB after the first trial to 540 MB
+    after 90 (then slowly on), while the memory still referenced stayed at 250 MB plus the bounded caches (every
+    lru_cache was full by then; clearing them all freed 80 MB, all of it the 16 compiled checker models of
+    ``motion.collision``). Trimming after each trial keeps the worker at what it references; it takes 1.5-3 ms
+    (under 1 % of a trial).
+    """
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(None)
+        trim = libc.malloc_trim
+    except (OSError, AttributeError):  # not glibc (musl has no malloc_trim)
+        return False
+    trim(0)
+    return True
 
 
 
@@ -472,6 +500,7 @@ __all__ = [
     "apply_params",
     "execute_trial",
     "make_trial",
+    "release_freed_memory",
     "trial_config",
     "trial_seed",
     "worker_failure",

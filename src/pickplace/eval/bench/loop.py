@@ -1,0 +1,291 @@
+"""Closed-loop benchmark: whole episodes against a bare ``mj_step`` replay of their own torques, in one run.
+
+For each case (``default``: the default scene; ``obstacle``: the wall between start and goal; ``realistic``: the
+realistic profile, :mod:`pickplace.task.profile`; ``stack``: a three-object stack as ``pickplace run --task stack
+--objects 3`` draws it), all with seed 0:
+
+1. the episode runs once with a tape on ``mujoco.mj_step`` (:mod:`pickplace.motion.loop` is the only place an
+   episode steps the physics): the MuJoCo data before its first step, and before every step the controls and,
+   where they changed, the applied forces and the mocap bodies' poses;
+2. then, ``--repeats`` interleaved rounds of: the episode again, untaped, timing its control loops
+   (:meth:`ControlLoop.run <pickplace.motion.loop.ControlLoop.run>`: law, monitor, telemetry and physics: the
+   *closed loop*) and the whole run; and a bare replay: from a copy of that first state, every step's controls
+   written and ``mujoco.mj_step`` called, nothing else. MuJoCo is deterministic, so the replay visits the
+   episode's states (same contacts, same solver work; checked: its final state must equal the episode's), and
+   ``closed loop / replay`` is the cost of everything Python does around the physics, as a ratio measured side by
+   side (the machines are shared and noisy).
+
+Reported per case, best of the rounds: closed-loop and replay wall time, their ratio, the simulated time and
+the real-time factor of the whole episode, planning included (the figure ``pickplace run`` reports: simulated
+time over the wall time from the first phase to the end; ``end_to_end`` also counts building the model).
+
+Usage: ``python benchmarks/loop.py [--json] [--repeats R] [--cases default,obstacle,realistic,stack]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import copy
+import json
+import sys
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from pickplace.eval.bench import machine_info
+from pickplace.motion import loop as loop_module
+from pickplace.motion.loop import ControlLoop
+from pickplace.task.episode import EpisodeConfig, EpisodeResult, run_episode
+from pickplace.task.profile import ProfileConfig
+from pickplace.task.task_episode import TaskResult, run_task
+from pickplace.task.tasks import TaskConfig, random_task_scene
+from pickplace.world.config import SceneConfig
+
+#: The cases, in the order they run.
+CASES = ("default", "obstacle", "realistic", "stack")
+
+
+def case_config(name: str, seed: int = 0) -> EpisodeConfig:
+    """The episode config of a case (:data:`CASES`)."""
+    if name == "default":
+        return EpisodeConfig()
+    if name == "obstacle":
+        return EpisodeConfig(scene=SceneConfig(obstacle=True))
+    if name == "realistic":
+        return EpisodeConfig(profile=ProfileConfig.named("realistic"))
+    if name == "stack":  # as `pickplace run --task stack --objects 3 --seed SEED` draws it
+        scene = random_task_scene("stack", 3, np.random.default_rng([seed, 7]), base=SceneConfig())
+        return EpisodeConfig(scene=scene, task=TaskConfig(kind="stack"))
+    raise ValueError(f"unknown case {name!r}; cases: {', '.join(CASES)}")
+
+
+def _run(config: EpisodeConfig, seed: int) -> EpisodeResult | TaskResult:
+    return run_task(config, seed) if config.task is not None else run_episode(config, seed)
+
+
+def _sim_time(result: EpisodeResult | TaskResult) -> float:
+    return result.total_time_s if isinstance(result, TaskResult) else result.cycle_time_s
+
+
+# --------------------------------------------------------------------------- #
+# the tape and the replay
+# --------------------------------------------------------------------------- #
+
+
+@dataclass
+class Tape:
+    """What an episode applied at each physics step.
+
+    Attributes:
+        model: The model stepped.
+        start: A copy of the data before the first step.
+        ctrl: The controls of every step (steps, nu).
+        changes: ``{step: (xfrc_applied, mocap_pos, mocap_quat)}`` at the steps where one of them changed.
+        final_qpos: ``qpos`` after the last step.
+        final_qvel: ``qvel`` after the last step.
+        other_models: Steps taken on another model than ``model`` (the replay cannot reproduce them).
+    """
+
+    model: mujoco.MjModel | None = None
+    start: mujoco.MjData | None = None
+    ctrl: list[np.ndarray] = field(default_factory=list)
+    changes: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=dict)
+    final_qpos: np.ndarray | None = None
+    final_qvel: np.ndarray | None = None
+    other_models: int = 0
+    _last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    def step(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        """Record what step ``len(self.ctrl)`` applies, then take it."""
+        if self.model is None:
+            self.model, self.start = m, copy.copy(d)
+        elif m is not self.model:
+            self.other_models += 1
+        now = (d.xfrc_applied, d.mocap_pos, d.mocap_quat)
+        if self._last is None or any(not np.array_equal(a, b) for a, b in zip(now, self._last, strict=True)):
+            self._last = tuple(a.copy() for a in now)  # type: ignore[assignment]
+            self.changes[len(self.ctrl)] = self._last  # type: ignore[assignment]
+        self.ctrl.append(d.ctrl.copy())
+        mujoco.mj_step(m, d)
+        self.final_qpos, self.final_qvel = d.qpos.copy(), d.qvel.copy()
+
+
+class _Stepper:
+    """Stands in for the ``mujoco`` module in :mod:`pickplace.motion.loop`: ``mj_step`` goes through the tape."""
+
+    def __init__(self, tape: Tape) -> None:
+        self._tape = tape
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(mujoco, name)
+
+    def mj_step(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        self._tape.step(m, d)
+
+
+@contextlib.contextmanager
+def taped() -> Iterator[Tape]:
+    """Within the block, every physics step of an episode is recorded on the tape yielded."""
+    tape = Tape()
+    saved = loop_module.mujoco
+    loop_module.mujoco = _Stepper(tape)  # type: ignore[assignment]
+    try:
+        yield tape
+    finally:
+        loop_module.mujoco = saved
+
+
+@contextlib.contextmanager
+def loop_timer() -> Iterator[list[float]]:
+    """Within the block, the wall time (s) spent in :meth:`ControlLoop.run` adds up in the one-element list."""
+    total = [0.0]
+    run = ControlLoop.run
+
+    def timed(self: ControlLoop, *args: Any, **kwargs: Any) -> Any:
+        t0 = time.perf_counter()
+        try:
+            return run(self, *args, **kwargs)
+        finally:
+            total[0] += time.perf_counter() - t0
+
+    ControlLoop.run = timed  # type: ignore[method-assign]
+    try:
+        yield total
+    finally:
+        ControlLoop.run = run  # type: ignore[method-assign]
+
+
+def replay(tape: Tape) -> tuple[float, mujoco.MjData]:
+    """Step a copy of the tape's first state with its controls by bare ``mujoco.mj_step``; returns the wall time
+    (s) and the data at the end."""
+    assert tape.model is not None and tape.start is not None
+    m, d = tape.model, copy.copy(tape.start)
+    ctrl, changes, step = d.ctrl, tape.changes, mujoco.mj_step
+    t0 = time.perf_counter()
+    for k, u in enumerate(tape.ctrl):
+        if k in changes:
+            d.xfrc_applied[:], d.mocap_pos[:], d.mocap_quat[:] = changes[k]
+        ctrl[:] = u
+        step(m, d)
+    return time.perf_counter() - t0, d
+
+
+# --------------------------------------------------------------------------- #
+# the benchmark
+# --------------------------------------------------------------------------- #
+
+
+def _one_round(config: EpisodeConfig, seed: int, tape: Tape) -> dict[str, float]:
+    with loop_timer() as closed:
+        t0 = time.perf_counter()
+        result = _run(config, seed)
+        wall = time.perf_counter() - t0
+    replay_s, _ = replay(tape)
+    sim = _sim_time(result)
+    return {"closed_loop_s": closed[0], "replay_s": replay_s, "ratio": closed[0] / replay_s,
+            "episode_wall_s": result.wall_time_s, "real_time_factor": result.real_time_factor,
+            "real_time_factor_end_to_end": sim / wall, "success": bool(result.success)}
+
+
+def run(cases: tuple[str, ...] = CASES, repeats: int = 5, seed: int = 0,
+        progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """Run the benchmark; returns one JSON-serialisable dict."""
+    configs = {c: case_config(c, seed) for c in cases}
+    tapes: dict[str, Tape] = {}
+    facts: dict[str, dict[str, Any]] = {}
+    for c in cases:  # the taped runs (also the warm-up)
+        with taped() as tape:
+            result = _run(configs[c], seed)
+        _, end = replay(tape)
+        assert tape.final_qpos is not None and tape.final_qvel is not None
+        deviation = max(float(np.max(np.abs(end.qpos - tape.final_qpos))),
+                        float(np.max(np.abs(end.qvel - tape.final_qvel))))
+        tapes[c] = tape
+        facts[c] = {"steps": len(tape.ctrl), "simulated_s": _sim_time(result), "success": bool(result.success),
+                    "replay_identical": deviation == 0.0 and tape.other_models == 0,
+                    "replay_max_deviation": deviation}
+        if progress is not None:
+            progress(f"{c}: taped {len(tape.ctrl)} steps, replay identical: {facts[c]['replay_identical']}")
+    rounds: dict[str, list[dict[str, float]]] = {c: [] for c in cases}
+    for r in range(repeats):  # interleaved rounds
+        for c in cases:
+            rounds[c].append(_one_round(configs[c], seed, tapes[c]))
+            if progress is not None:
+                row = rounds[c][-1]
+                progress(f"round {r + 1}/{repeats} {c}: closed loop {row['closed_loop_s']:.3f} s, replay "
+                         f"{row['replay_s']:.3f} s ({row['ratio']:.2f}x), real-time factor "
+                         f"{row['real_time_factor']:.2f}")
+    out: dict[str, Any] = {}
+    for c in cases:
+        rs = rounds[c]
+        closed, rep = min(x["closed_loop_s"] for x in rs), min(x["replay_s"] for x in rs)
+        steps = facts[c]["steps"]
+        out[c] = {
+            **facts[c],
+            "closed_loop_s": closed, "replay_s": rep, "ratio": closed / rep,
+            "ratio_best_round": min(x["ratio"] for x in rs),
+            "closed_loop_us_per_step": closed / steps * 1e6, "replay_us_per_step": rep / steps * 1e6,
+            "python_us_per_step": (closed - rep) / steps * 1e6,
+            "episode_wall_s": min(x["episode_wall_s"] for x in rs),
+            "real_time_factor": max(x["real_time_factor"] for x in rs),
+            "real_time_factor_end_to_end": max(x["real_time_factor_end_to_end"] for x in rs),
+            "all_succeeded": all(x["success"] for x in rs),
+        }
+    return {"cases": out, "repeats": repeats, "seed": seed, "machine": machine_info()}
+
+
+def print_table(result: dict[str, Any]) -> None:
+    """Render the result as a rich table."""
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    t = Table(title=f"Closed loop against a bare mj_step replay of the same torques (best of {result['repeats']} "
+                    "interleaved rounds)")
+    for col in ("case", "steps", "closed loop (s)", "replay (s)", "ratio", "Python µs/step", "simulated (s)",
+                "episode wall (s)", "real-time factor", "replay identical"):
+        t.add_column(col, justify="left" if col == "case" else "right")
+    for name, c in result["cases"].items():
+        t.add_row(name, str(c["steps"]), f"{c['closed_loop_s']:.3f}", f"{c['replay_s']:.3f}", f"{c['ratio']:.2f}×",
+                  f"{c['python_us_per_step']:.1f}", f"{c['simulated_s']:.2f}", f"{c['episode_wall_s']:.3f}",
+                  f"{c['real_time_factor']:.1f}×", "yes" if c["replay_identical"] else "NO")
+    console.print(t)
+    m = result["machine"]
+    console.print(f"1-min load average {m['load_average_1min']:.2f} on {m['cpu_count']} cores; real-time factor: "
+                  "simulated time over the episode's wall time from its first phase (planning included)",
+                  highlight=False)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmark; print a rich table, or one JSON object with ``--json``. Returns the exit code."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    parser.add_argument("--repeats", type=int, default=5, help="interleaved rounds; the best is reported (default 5)")
+    parser.add_argument("--cases", default=",".join(CASES),
+                        help=f"comma-separated cases among {', '.join(CASES)} (default: all)")
+    parser.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
+    args = parser.parse_args(argv)
+    cases = tuple(c.strip() for c in args.cases.split(",") if c.strip())
+    unknown = [c for c in cases if c not in CASES]
+    if unknown or not cases:
+        parser.error(f"--cases must name some of {', '.join(CASES)} (got {args.cases!r})")
+    if args.repeats < 1 or args.seed < 0:
+        parser.error("--repeats must be >= 1 and --seed >= 0")
+    echo = None if args.json else (lambda line: print(line, file=sys.stderr, flush=True))
+    result = run(cases, args.repeats, args.seed, echo)
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print_table(result)
+    return 0
+
+
+__all__ = ["CASES", "Tape", "case_config", "loop_timer", "main", "replay", "run", "taped"]
+
+if __name__ == "__main__":
+    sys.exit(main())
