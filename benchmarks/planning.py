@@ -1,4 +1,5 @@
-"""Planning benchmark: pickplace's RRT* against OMPL's RRTConnect and RRT*, side by side in one run.
+"""Planning benchmark: pickplace's planner against OMPL's RRTConnect and RRT*, side by side in one run, on the
+pick-and-place segments of the default and obstacle scenes and on harder problems (shelf, cage, bins, slot).
 
 OMPL's planners run twice: over the full joint bounds (``ompl-rrtconnect``, ``ompl-rrtstar``) and with their
 state space bounds set to the box pickplace samples in, ±1 rad around start and goal (``ompl-rrtconnect-box``,

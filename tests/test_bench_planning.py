@@ -108,8 +108,9 @@ def test_json_rows_say_where_each_planner_samples(capsys: pytest.CaptureFixture[
     result = json.loads(capsys.readouterr().out)
     margin = result["pickplace"]["box_margin_rad"]
     assert margin == planning.PlannerConfig().box_margin_rad
-    names = ["pickplace-rrtstar", "ompl-rrtconnect", "ompl-rrtconnect-box", "ompl-rrtstar", "ompl-rrtstar-box"]
-    assert len(result["segments"]) == 4
+    names = ["pickplace", "ompl-rrtconnect", "ompl-rrtconnect-box", "ompl-rrtstar", "ompl-rrtstar-box"]
+    assert [seg["scene"] for seg in result["segments"]] == ["default", "default", "obstacle", "obstacle", "shelf",
+                                                            "cage", "bins", "slot"]
     for seg in result["segments"]:
         rows = {r["planner"]: r for r in result["rows"]
                 if (r["scene"], r["segment"]) == (seg["scene"], seg["segment"])}
@@ -118,13 +119,26 @@ def test_json_rows_say_where_each_planner_samples(capsys: pytest.CaptureFixture[
                                  seg["joint_upper_rad"], margin)
         full = (seg["joint_lower_rad"], seg["joint_upper_rad"])
         for name, row in rows.items():
-            in_box = name == "pickplace-rrtstar" or name.endswith("-box")
+            in_box = name == "pickplace" or name.endswith("-box")
             assert row["sampling"] == (bench.SAMPLING_BOX if in_box else bench.SAMPLING_FULL)
             assert (row["sampling_lower_rad"], row["sampling_upper_rad"]) == (box if in_box else full)
             lo, hi = np.array(row["sampling_lower_rad"]), np.array(row["sampling_upper_rad"])
             for q in (np.array(seg["start_rad"]), np.array(seg["goal_rad"])):
                 assert np.all(lo <= q) and np.all(q <= hi)
         for key, _, _ in bench.RATIOS:
-            assert key in rows["pickplace-rrtstar"]
+            assert key in rows["pickplace"]
     assert result["sampling"]["ompl-rrtstar-box"] == "box ±1 rad around start/goal"
     assert result["sampling"]["ompl-rrtstar"] == "full joint bounds"
+
+
+def test_scenes_can_be_chosen_and_unknown_ones_are_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    """``--scenes`` runs only the named scenes (here one harder problem, pickplace alone) and names the valid ones
+    when given an unknown one."""
+    assert bench.main(["--json", "--queries", "1", "--budget", "30", "--no-ompl", "--scenes", "slot"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert [(r["scene"], r["planner"]) for r in result["rows"]] == [("slot", "pickplace")]
+    assert result["rows"][0]["success_rate"] == 1.0 and result["rows"][0]["dense_valid_rate"] == 1.0
+    assert result["pickplace"]["search"] == "connect"
+    with pytest.raises(SystemExit):
+        bench.main(["--scenes", "kitchen"])
+    assert "choose from default, obstacle, shelf, cage, bins, slot" in capsys.readouterr().err

@@ -152,3 +152,74 @@ def test_policy_validation() -> None:
         CollisionPolicy(margin_m=-0.01)
     with pytest.raises(ConfigError, match=r"^collision\.finger_m = 0\.05 is invalid"):
         CollisionPolicy(finger_m=0.05)
+
+
+def test_far_bodies_are_switched_off_without_changing_an_answer(robot: model.Robot,
+                                                                 configs: GraspConfigurations) -> None:
+    """The intruder and the 64 seen-obstacle columns, parked far away, are out of the broad phase; moved next to
+    the arm (set_world) they count again. A checker that keeps every body answers the same throughout."""
+    rng = np.random.default_rng(7)
+    qs = robot.home_q + rng.normal(0.0, 0.8, (300, 6))
+    rel = configs.targets.T_tcp_object
+    for policy in (CollisionPolicy(margin_m=0.01),
+                   CollisionPolicy(margin_m=0.01, object_held=True, finger_m=configs.held_finger_m)):
+        culled = CollisionChecker(robot, policy, T_tcp_object=rel)
+        full = CollisionChecker(robot, policy, T_tcp_object=rel, cull_far=False)
+        assert culled.far_bodies == 1 + len(model.SEEN_OBSTACLE_NAMES) and full.far_bodies == 0
+        np.testing.assert_array_equal(culled.are_valid(qs), full.are_valid(qs))
+        # the intruder and one column moved in front of the arm: switched on again
+        d = robot.make_data()
+        d.mocap_pos[robot.mj.body(model.INTRUDER).mocapid[0]] = [0.45, 0.0, 0.5]
+        d.mocap_pos[robot.mj.body(model.SEEN_OBSTACLE_NAMES[3]).mocapid[0]] = [0.35, 0.25, 0.4]
+        for checker in (culled, full):
+            checker.set_world(d)
+        assert culled.far_bodies == len(model.SEEN_OBSTACLE_NAMES) - 1
+        blocked = _tcp_at(robot, (0.45, 0.0, 0.5))
+        assert "intruder" in {name for pair in culled.colliding_pairs(blocked) for name in pair}
+        np.testing.assert_array_equal(culled.are_valid(qs), full.are_valid(qs))
+        # parked again: off again
+        for checker in (culled, full):
+            checker.set_world(robot.make_data())
+        assert culled.far_bodies == 1 + len(model.SEEN_OBSTACLE_NAMES)
+        assert culled.is_valid(blocked) == full.is_valid(blocked)
+
+
+def test_reach_bounds_every_robot_geom_in_every_configuration(robot: model.Robot,
+                                                              configs: GraspConfigurations) -> None:
+    """reach_m is a bound along the kinematic chain: every colliding robot geom (and the carried object), its
+    bounding sphere and margin included, stays within it from the base, whatever the joint angles."""
+    policy = CollisionPolicy(margin_m=0.01, object_held=True, finger_m=configs.held_finger_m)
+    checker = CollisionChecker(robot, policy, T_tcp_object=configs.targets.T_tcp_object)
+    reach = checker.reach_m()
+    m = checker._m
+    d = mujoco.MjData(m)
+    robot_geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] in robot.handles.robot_bodies | {
+        mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "held_object")} and checker._contype[g]]
+    arm = m.jnt_qposadr[[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in model.ARM_JOINTS]]
+    rng = np.random.default_rng(11)
+    farthest = 0.0
+    for q in rng.uniform(-np.pi, np.pi, (500, 6)):
+        d.qpos[arm] = q
+        mujoco.mj_kinematics(m, d)
+        far = np.linalg.norm(d.geom_xpos[robot_geoms], axis=1) + m.geom_rbound[robot_geoms] + m.geom_margin[
+            robot_geoms]
+        farthest = max(farthest, float(far.max()))
+    print(f"\nreach bound {reach:.3f} m, farthest geom seen {farthest:.3f} m")
+    assert farthest <= reach
+    assert reach < 2.0  # and not absurdly loose: the parked obstacles (7 m away) are beyond it
+
+
+def test_first_invalid_stops_at_the_first_collision_and_counts_its_checks(robot: model.Robot) -> None:
+    checker = CollisionChecker(robot, CollisionPolicy(margin_m=0.0))
+    rng = np.random.default_rng(5)
+    qs = robot.home_q + rng.normal(0.0, 1.0, (60, 6))
+    valid = checker.are_valid(qs)
+    assert not valid.all() and valid[0]
+    checker.checks = 0
+    first = checker.first_invalid(qs)
+    assert first == int(np.flatnonzero(~valid)[0])
+    assert checker.checks == first + 1
+    assert checker.all_valid(qs[:first]) and not checker.all_valid(qs)
+    checker.checks = 0
+    assert checker.first_invalid(qs[valid]) == -1 and checker.checks == int(valid.sum())
+    assert checker.first_invalid(robot.home_q) == -1  # a single configuration

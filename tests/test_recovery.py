@@ -71,9 +71,9 @@ def test_the_same_failure_may_be_answered_once_more_another_way() -> None:
 
 
 def test_no_path_to_a_grasp_falls_back_to_the_next_one_before_the_arm_moves() -> None:
-    """A planner that gives up at once (1 iteration, no retry) finds no path around the wall to the cube beside
+    """A planner that gives up at once (RRT*, 1 iteration, no retry) finds no path around the wall to the cube beside
     it: the episode drops each grasp in turn for the next that solves, up to the retry budget, without moving."""
-    config = EpisodeConfig(planner=PlannerConfig(iterations=1, retries=0)).with_scene(
+    config = EpisodeConfig(planner=PlannerConfig(search="rrtstar", iterations=1, retries=0)).with_scene(
         obstacle=True, obstacle_xy_m=(0.42, 0.0), start_xy_m=(0.35, 0.08))
     r = run_episode(config)
     assert not r.success
@@ -89,7 +89,7 @@ def test_a_transport_that_cannot_be_planned_puts_the_object_back_and_takes_the_n
     """A planner that gives up at once finds no path around the wall with the cube in the hand: each time, the
     cube is set back down where it was picked (not dropped from the lift), and the next grasp is tried, up to the
     retry budget; the last failure names PLAN_TRANSPORT."""
-    config = EpisodeConfig(planner=PlannerConfig(iterations=1, retries=0)).with_scene(obstacle=True)
+    config = EpisodeConfig(planner=PlannerConfig(search="rrtstar", iterations=1, retries=0)).with_scene(obstacle=True)
     r = run_episode(config, record=True)
     assert not r.success and r.failure_phase == "PLAN_TRANSPORT" and r.failure_kind == "SearchExhausted"
     assert len(r.recoveries) == config.machine.max_retries

@@ -465,20 +465,30 @@ def _save_episode(args: argparse.Namespace, result: EpisodeResult | TaskResult, 
 
 
 def _serve_web(args: argparse.Namespace, episode: SavedEpisode, console: Console) -> None:
-    """Serve ``episode`` in the web viewer at ``--host``/``--port`` until Ctrl-C."""
+    """Serve ``episode`` in the web viewer at ``--host``/``--port`` until Ctrl-C or SIGTERM.
+
+    Both signals get a handler of their own: a process started in the background by a non-interactive shell
+    inherits SIGINT ignored, and Python then raises no KeyboardInterrupt for it.
+    """
+    import signal
+    import threading
+
     from pickplace.eval.web import EpisodeViewer
 
     out = Console(stderr=True, soft_wrap=True) if getattr(args, "json", False) else console
     viewer = EpisodeViewer(episode, host=args.host, port=args.port, t_s=getattr(args, "at", None) or 0.0)
+    stop = threading.Event()
+    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         if viewer.server.get_port() != args.port and args.port != 0:
             out.print(f"port {args.port} is busy: using {viewer.server.get_port()}", highlight=False)
         out.print(escape(f"web viewer: {viewer.url}  (serving until Ctrl-C)"), highlight=False, soft_wrap=True)
         out.file.flush()
-        viewer.serve_forever()
-    except KeyboardInterrupt:
+        viewer.serve_forever(stop)
         out.print("web viewer stopped", highlight=False)
     finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
         viewer.close()
 
 

@@ -104,7 +104,7 @@ SEEN_PARKED_POS = (-5.0, -5.0, -5.0)
 
 
 def scene_spec(scene: SceneConfig) -> mujoco.MjSpec:
-    """The full scene for MuJoCo: world, robot, table, object, goal marker and optional obstacle.
+    """The full scene for MuJoCo: world, robot, table, object, goal marker, optional obstacle and fixed boxes.
 
     Args:
         scene: What to build. Nothing in the XML files needs editing to vary it.
@@ -171,6 +171,10 @@ def scene_spec(scene: SceneConfig) -> mujoco.MjSpec:
         wall.add_geom(name="obstacle", type=mujoco.mjtGeom.mjGEOM_BOX,
                       size=[scene.obstacle_length_m / 2, scene.obstacle_thickness_m / 2,
                             scene.obstacle_height_m / 2], material="obstacle")
+    for box in scene.boxes:  # fixed boxes: shelves, cages, walls (SceneConfig.boxes)
+        body = spec.worldbody.add_body(name=f"box_{box.name}", pos=list(box.center_m), quat=_quat_yaw(box.yaw_rad))
+        body.add_geom(name=box.name, type=mujoco.mjtGeom.mjGEOM_BOX, size=[v / 2 for v in box.size_m],
+                      material="obstacle")
     return spec
 
 

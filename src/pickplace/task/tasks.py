@@ -301,7 +301,8 @@ class TaskPlanner:
         if self.task.order == TaskOrder.LISTED:
             name = next((n for n in pending if n not in skip), None)
             if name is None:
-                raise TaskStuck(f"no pick can start: {', '.join(pending)} cannot be grasped where they are")
+                raise TaskStuck(f"no pick can start: {', '.join(pending)} cannot be picked and placed from where they "
+                                "are (in the listed order, without buffer spots)")
             return Pick(name, self._own_goal(name))
         if free:
             return Pick(free[0], self._own_goal(free[0]))

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
@@ -134,6 +135,61 @@ class BinConfig:
         return from_mapping(cls, data, "bin")
 
 
+#: What a box's name may be: it names the box's body and geom in the MJCF.
+_BOX_NAME = re.compile(r"[a-z][a-z0-9_]{0,39}")
+
+
+@dataclass(frozen=True)
+class BoxConfig:
+    """A fixed box in the scene (TOML: ``boxes = [{name = ..., center_m = [...], size_m = [...]}]`` in ``[scene]``):
+    shelves, cages, bins and walls are built from them. To the arm and to a carried object a box is an obstacle
+    (the collision checker's margin applies), never a surface objects are set down on.
+
+    Attributes:
+        name: Its name (snake_case, unique in the scene): its body is ``box_<name>``, its geom ``<name>``.
+        center_m: Its centre (x, y, z) in the world (m).
+        size_m: Its full extents (x, y, z) along its own axes (m).
+        yaw_rad: Its rotation about world z (rad).
+    """
+
+    name: str
+    center_m: tuple[float, float, float]
+    size_m: tuple[float, float, float]
+    yaw_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        if not isinstance(self.name, str) or not _BOX_NAME.fullmatch(self.name):
+            raise ConfigError("scene.boxes.name", self.name, "must be snake_case: a lower-case letter, then lower-case "
+                                                             "letters, digits or _ (at most 40)")
+        where = f"scene.boxes.{self.name}"
+        set_(self, "center_m", check_vector(f"{where}.center_m", self.center_m, 3, -5.0, 5.0, unit="m"))
+        set_(self, "size_m", check_vector(f"{where}.size_m", self.size_m, 3, 0.002, 5.0, unit="m"))
+        set_(self, "yaw_rad", check_range(f"{where}.yaw_rad", self.yaw_rad, -2 * math.pi, 2 * math.pi, unit="rad"))
+
+    @property
+    def footprint_xy_m(self) -> np.ndarray:
+        """Corners (4, 2) of its footprint seen from above (m)."""
+        c, s_ = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
+        hx, hy = self.size_m[0] / 2, self.size_m[1] / 2
+        local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+        return local @ np.array([[c, s_], [-s_, c]]) + np.asarray(self.center_m[:2])
+
+    @property
+    def z_range_m(self) -> tuple[float, float]:
+        """Its bottom and top heights (m)."""
+        return self.center_m[2] - self.size_m[2] / 2, self.center_m[2] + self.size_m[2] / 2
+
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, Any]) -> BoxConfig:
+        """From one TOML table (lists become tuples)."""
+        if isinstance(data, BoxConfig):
+            return data
+        if not isinstance(data, Mapping):
+            raise ConfigError("scene.boxes", data, "must be a list of tables with name, center_m, size_m (yaw_rad)")
+        return from_mapping(cls, data, "scene.boxes", base=cls("box", (0.0, 0.0, 0.0), (0.1, 0.1, 0.1)))
+
+
 @dataclass(frozen=True)
 class SceneConfig:
     """The world the robot works in. Positions are in the world frame (m), robot base at the origin.
@@ -162,6 +218,8 @@ class SceneConfig:
         goal_z_m: Height of the surface the object is set down on at the goal (m): the top of a tower, the bin's
             floor; None (default): the table top.
         goal_support: Name of the object it is set down on (the tower's top), or ``""`` (the table or the bin).
+        boxes: Fixed boxes (shelves, cages, walls, ...): obstacles to the arm and to a carried object. No object may
+            start inside one.
     """
 
     object: ObjectConfig = field(default_factory=ObjectConfig)
@@ -183,6 +241,7 @@ class SceneConfig:
     bin: BinConfig | None = None
     goal_z_m: float | None = None
     goal_support: str = ""
+    boxes: tuple[BoxConfig, ...] = ()
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -224,8 +283,17 @@ class SceneConfig:
                                                self.table_height_m + 0.5, unit="m (at or above the table top)"))
         if not isinstance(self.goal_support, str):
             raise ConfigError("scene.goal_support", self.goal_support, "must be an object's name, or empty")
+        set_(self, "boxes", tuple(self.boxes))
+        for b in self.boxes:
+            if not isinstance(b, BoxConfig):
+                raise ConfigError("scene.boxes", b, "must be BoxConfigs (tables with name, center_m, size_m)")
+        box_names = [b.name for b in self.boxes]
+        for name in box_names:
+            if box_names.count(name) > 1:
+                raise ConfigError(f"scene.boxes.{name}", name, "box names must be unique")
         self._check_on_table("scene.start_xy_m", self.start_xy_m)
         self.check_start_clear_of_obstacle()
+        self._check_clear_of_boxes()
         if self.others or self.bin is not None:
             self._check_objects()
         # The goal is checked by check_goal_on_table(), after its reachability: a goal far out of the
@@ -265,6 +333,23 @@ class SceneConfig:
                     raise ConfigError(where, tuple(o.start_xy_m), f"the {o.name} would overlap the {p.name} "
                                                                   f"(at {tuple(p.start_xy_m)} m) by "
                                                                   f"{-gap * 1e3:.1f} mm")
+
+    def _check_clear_of_boxes(self) -> None:
+        """Raise :class:`InsideObstacle` if an object at its start overlaps a box that reaches down to it (a box whose
+        bottom lies below the object's top, and whose top lies above the table)."""
+        if not self.boxes:
+            return
+        for i, o in enumerate(self.objects):
+            top = self.table_height_m + float(o.object.geometry().extent_m[2])
+            for b in self.boxes:
+                bottom, box_top = b.z_range_m
+                if bottom >= top or box_top <= self.table_height_m:
+                    continue
+                gap = polygon_gap(footprint(o.object, o.start_xy_m, o.start_yaw_rad), b.footprint_xy_m)
+                if gap < 0.0:
+                    where = "scene.start_xy_m" if i == 0 else f"objects.{o.name}.start_xy_m"
+                    raise InsideObstacle(where, tuple(o.start_xy_m), f"the {o.name} would start inside the box "
+                                                                     f"'{b.name}' (centre {b.center_m} m)")
 
     def check_goal_on_table(self) -> None:
         """Raise :class:`ConfigError` unless the object's footprint at the goal (any yaw) lies on the table,
@@ -395,6 +480,11 @@ class SceneConfig:
             else:
                 scene_changes[target] = value
         names = [f.name for f in dataclasses.fields(cls) if f.name not in ("object", "others", "bin")]
+        if "boxes" in scene_changes:
+            boxes = scene_changes["boxes"]
+            if isinstance(boxes, (str, Mapping)) or not hasattr(boxes, "__iter__"):
+                raise ConfigError("scene.boxes", boxes, "must be a list of tables with name, center_m, size_m")
+            scene_changes["boxes"] = tuple(BoxConfig.from_mapping(b) for b in boxes)
         for key, value in scene_changes.items():
             if key not in names:
                 raise ConfigError(f"scene.{key}", value, f"unknown key; allowed: {', '.join(names)} (and the "
@@ -413,8 +503,12 @@ class SceneConfig:
         """Plain data (the ``[scene]`` table; the object, the other objects and the bin are tables of their own).
         Fields that are ``None`` (not set) are left out: TOML has no null, and their default is ``None``."""
         out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
-               if f.name not in ("object", "others", "bin") and getattr(self, f.name) is not None}
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
+               if f.name not in ("object", "others", "bin", "boxes") and getattr(self, f.name) is not None}
+        out = {k: list(v) if isinstance(v, tuple) else v for k, v in out.items()}
+        if self.boxes:  # only when there are any: a scene without boxes writes what it always wrote
+            out["boxes"] = [{"name": b.name, "center_m": list(b.center_m), "size_m": list(b.size_m),
+                             "yaw_rad": b.yaw_rad} for b in self.boxes]
+        return out
 
     def with_object(self, **changes: Any) -> SceneConfig:
         """A copy whose object has some fields changed (validated)."""
@@ -504,6 +598,7 @@ __all__ = [
     "MAX_CUBE_SIZE_M",
     "MIN_CUBE_SIZE_M",
     "BinConfig",
+    "BoxConfig",
     "SceneConfig",
     "SceneObject",
     "check_finite",

@@ -1,17 +1,26 @@
-"""Planning benchmark: pickplace's RRT* against OMPL's RRTConnect and RRT* on the pick-and-place segments.
+"""Planning benchmark: pickplace's planner against OMPL's RRTConnect and RRT*, on the pick-and-place segments and
+on harder problems.
 
-On the default scene and the obstacle scene (a wall between start and goal) every planner solves two
-segments once per seed: ``home->pregrasp`` (gripper open, object resting) and ``pregrasp->preplace`` (object
-carried), with the same kind of :class:`CollisionChecker` (margin 1 cm) and the same time budget. Each final
-path is then retimed with TOPP-RA (``TimingConfig.ur5e()``) and re-checked every 0.01 rad at margin 0.
+Scenes (``--scenes``, default all):
+
+* ``default``, ``obstacle``: the pick-and-place segments of the default scene and of the obstacle scene (a wall
+  between start and goal): ``home->pregrasp`` (gripper open, object resting) and ``pregrasp->preplace`` (object
+  carried), checker margin 1 cm.
+* ``shelf``, ``cage``, ``bins``, ``slot``: harder problems for this UR5e in the manner of public motion-planning
+  benchmarks (:mod:`~pickplace.eval.bench.planning_problems`): scenes of fixed boxes, ends solved by IK, the hand
+  free, checker margin 1 cm.
+
+Every planner solves each segment once per seed with the same :class:`CollisionChecker` and the same time budget.
+Each final path is then retimed with TOPP-RA (``TimingConfig.ur5e()``) and re-checked every 0.01 rad at margin 0.
 
 Where each planner samples (each row's ``sampling``, with the bounds in ``sampling_lower_rad`` and
 ``sampling_upper_rad``, (6,) rad):
 
-* ``pickplace-rrtstar``: ``"box ±1 rad around start/goal"``, the box spanned by start and goal, widened by
+* ``pickplace``: ``"box ±1 rad around start/goal"``, the box spanned by start and goal, widened by
   ``PlannerConfig.box_margin_rad`` (1 rad) on every joint and clipped to the joint bounds
-  (``PlannerConfig.sample_in_box``). It only samples when the straight segment is blocked: of the four
-  segments, only the obstacle scene's ``pregrasp->preplace`` is (the others are solved by their direct edge).
+  (``PlannerConfig.sample_in_box``). It only samples when the straight segment is blocked: of the default and
+  obstacle segments, only the obstacle scene's ``pregrasp->preplace`` is (the others are solved by their direct
+  edge); every harder problem is.
 * ``ompl-rrtconnect``, ``ompl-rrtstar``: ``"full joint bounds"`` (±2π, ±π for the elbow), OMPL's usual setup.
 * ``ompl-rrtconnect-box``, ``ompl-rrtstar-box``: the same two OMPL planners with the state space bounds set
   to exactly pickplace's box for that segment (:func:`sampling_box`, the same expression as the planner's),
@@ -22,9 +31,10 @@ Where each planner samples (each row's ``sampling``, with the bounds in ``sampli
 
 How the planners are set up (read the numbers with this in mind):
 
-* ``pickplace-rrtstar``: ``planning.plan(PlannerConfig(seed, time_budget_s=budget, retries=0))``. It tries the
-  straight segment first, samples in the box above, stops at the first solution, then shortcuts. Edges are
-  checked every 0.01 rad per joint (max-norm, ``edge_resolution_rad``).
+* ``pickplace``: ``planning.plan(PlannerConfig(seed, time_budget_s=budget, retries=0))``, the planner's defaults:
+  it tries the straight segment first, then grows lazy bidirectional RRT-Connect trees in the box above (only
+  their nodes checked), pulls the path where they meet taut (checking the segments it keeps), then shortcuts.
+  Edges are checked every 0.01 rad per joint (max-norm, ``edge_resolution_rad``).
 * OMPL: ``RealVectorStateSpace(6)`` with the row's bounds, validity = our ``is_valid`` through a Python
   callback, edges checked by OMPL's discrete motion validator every 0.01 rad of **L2** distance
   (``setStateValidityCheckingResolution(0.01 / max extent)`` of that space): every joint then moves at most
@@ -39,13 +49,13 @@ How the planners are set up (read the numbers with this in mind):
   next's), so that a slow spell of a shared machine hits every planner alike and the ratios hold.
 * Total and solve times and checks are over all queries (a failure costs what it spent); simplification
   time, costs, waypoints, TOPP-RA numbers and ``dense_valid_rate`` are over the successful queries.
-* Ratios, measured in the same run and carried by the ``pickplace-rrtstar`` rows:
+* Ratios, measured in the same run and carried by the ``pickplace`` rows:
   ``time_ratio_vs_ompl_rrtconnect[_box]`` (pickplace's median time ÷ OMPL RRTConnect's, full bounds or box)
   and ``cost_ratio_vs_ompl_rrtstar[_box]`` (pickplace's median cost after shortcutting ÷ OMPL RRT*'s after
   simplification; None when that RRT* solved no query).
 
 Usage: ``python benchmarks/planning.py [--json] [--queries N] [--budget S] [--no-ompl] [--quick]
-[--ompl-range R]``.
+[--scenes a,b] [--ompl-range R]``.
 """
 
 from __future__ import annotations
@@ -55,7 +65,7 @@ import json
 import logging
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass, replace
 from importlib.metadata import PackageNotFoundError, version
 from types import ModuleType
@@ -64,7 +74,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from pickplace.errors import ConfigError, PlanningFailed, TimingFailed
-from pickplace.eval.bench import machine_info
+from pickplace.eval.bench import machine_info, planning_problems
 from pickplace.grasping.configurations import solve_grasp_configurations
 from pickplace.motion import planning
 from pickplace.motion.collision import CollisionChecker, CollisionPolicy
@@ -85,6 +95,8 @@ CHECK_CONFIGS, CHECK_SPREAD_RAD = 2000, 0.5  # collision-cost sample: home + U(-
 OMPL_SIMPLIFY_ROUNDS = 5
 SAMPLING_FULL = "full joint bounds"
 SAMPLING_BOX = f"box ±{PICKPLACE_CONFIG.box_margin_rad:g} rad around start/goal"
+#: The scenes, in order: the pick-and-place segments of the default and obstacle scenes, then the harder problems.
+SCENES = ("default", "obstacle", *(p.name for p in planning_problems.problems()))
 
 
 @dataclass(frozen=True)
@@ -108,7 +120,7 @@ class PlannerSpec:
         return SAMPLING_BOX if self.box else SAMPLING_FULL
 
 
-PICKPLACE = PlannerSpec("pickplace-rrtstar", "pickplace", PICKPLACE_CONFIG.sample_in_box)
+PICKPLACE = PlannerSpec("pickplace", "pickplace", PICKPLACE_CONFIG.sample_in_box)
 OMPL_PLANNERS = (PlannerSpec("ompl-rrtconnect", "rrtconnect", False),
                  PlannerSpec("ompl-rrtconnect-box", "rrtconnect", True),
                  PlannerSpec("ompl-rrtstar", "rrtstar", False),
@@ -194,6 +206,21 @@ def segments(scene_name: str, scene: SceneConfig) -> list[Segment]:
                               configs.pregrasp.q, configs.preplace.q)):
         out.append(Segment(scene_name, name, np.asarray(a, float), np.asarray(b, float), robot.arm_lower,
                            robot.arm_upper, make(0.01), make(0.0)))
+    return out
+
+
+def problem_segments(names: Collection[str] | None = None) -> list[Segment]:
+    """The harder problems (:mod:`~pickplace.eval.bench.planning_problems`) as segments, the free hand's checkers
+    (margin 1 cm, and 0 for the dense re-check); only those named in ``names`` if given."""
+    out = []
+    for problem in planning_problems.problems():
+        if names is not None and problem.name not in names:
+            continue
+        robot = build(problem.scene)
+        checker = CollisionChecker(robot, CollisionPolicy(margin_m=0.01))
+        start, goal = planning_problems.solve_ends(robot, problem, checker)
+        out.append(Segment(problem.name, problem.segment, start, goal, robot.arm_lower, robot.arm_upper, checker,
+                           CollisionChecker(robot, CollisionPolicy(margin_m=0.0))))
     return out
 
 
@@ -453,6 +480,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of tables")
     parser.add_argument("--no-ompl", action="store_true", help="skip the OMPL planners")
     parser.add_argument("--quick", action="store_true", help="smoke test: 3 queries, 0.2 s budget")
+    parser.add_argument("--scenes", default=",".join(SCENES),
+                        help=f"comma-separated scenes to run (default: all of {', '.join(SCENES)})")
     parser.add_argument("--ompl-range", type=float, default=None,
                         help="OMPL planners' range (rad, L2), full-bounds and box rows alike; "
                              "default: OMPL's 0.2 x max extent of each row's state space")
@@ -462,10 +491,15 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--queries must be >= 1 and --budget > 0")
     if args.ompl_range is not None and args.ompl_range <= 0:
         parser.error("--ompl-range must be > 0")
+    wanted = [name.strip() for name in args.scenes.split(",") if name.strip()]
+    unknown = sorted(set(wanted) - set(SCENES))
+    if unknown or not wanted:
+        parser.error(f"--scenes: unknown {', '.join(unknown) or '(none given)'}; choose from {', '.join(SCENES)}")
     ompl = load_ompl(not args.no_ompl)
     segs = [seg for name, scene in (("default", SceneConfig()), ("obstacle", SceneConfig(obstacle=True)))
-            for seg in segments(name, scene)]
-    home = segs[0].start
+            if name in wanted for seg in segments(name, scene)]
+    segs += problem_segments(wanted)
+    home = build(SceneConfig()).home_q
     by_checker = [check_cost(seg, home) for seg in segs]
     rows: list[dict[str, Any]] = []
     for seg in segs:
@@ -490,7 +524,7 @@ def main(argv: list[str] | None = None) -> int:
                       "goal_rad": seg.goal.tolist(), "joint_lower_rad": seg.lower.tolist(),
                       "joint_upper_rad": seg.upper.tolist()} for seg in segs],
         "sampling": {spec.name: spec.sampling for spec in (PICKPLACE, *OMPL_PLANNERS)},
-        "pickplace": {"sample_in_box": PICKPLACE_CONFIG.sample_in_box,
+        "pickplace": {"search": PICKPLACE_CONFIG.search, "sample_in_box": PICKPLACE_CONFIG.sample_in_box,
                       "box_margin_rad": PICKPLACE_CONFIG.box_margin_rad,
                       "step_size_rad": PICKPLACE_CONFIG.step_size_rad, "edge_resolution_rad": EDGE_RES_RAD},
         "collision_check": {"configs": CHECK_CONFIGS, "spread_rad": CHECK_SPREAD_RAD,
