@@ -247,5 +247,37 @@ class Views:
         self._frame = self._image = None
 
 
-__all__ = ["CAMERA", "POSITION_LIMIT_M", "VELOCITY_LIMIT", "Views", "draw_scene", "object_observation",
+class RenderedEnv:
+    """What the environments share at their end: ``render()`` through their :class:`Views`, and the release of
+    the renderers and of the observer's camera (its OpenGL context) on ``close()`` and before each new scene.
+
+    A mixin for the :class:`gymnasium.Env` subclasses; they set ``render_mode``, ``_views``, ``_d`` (the
+    simulation) and, if they have one, ``_observer``.
+    """
+
+    render_mode: str | None
+    _views: Views | None
+    _d: mujoco.MjData | None
+    _observer: Any = None
+
+    def render(self) -> np.ndarray | None:
+        """An RGB frame (H, W, 3) of the scene's overview camera (render_mode ``rgb_array``), else None."""
+        if self.render_mode != "rgb_array" or self._views is None or self._d is None:
+            return None
+        return self._views.frame(self._d)
+
+    def _release(self) -> None:
+        if self._views is not None:
+            self._views.close()
+            self._views = None
+        if self._observer is not None:
+            self._observer.close()
+            self._observer = None
+
+    def close(self) -> None:
+        """Release the renderers and the camera's OpenGL contexts (closing twice is harmless)."""
+        self._release()
+
+
+__all__ = ["CAMERA", "POSITION_LIMIT_M", "VELOCITY_LIMIT", "RenderedEnv", "Views", "draw_scene", "object_observation",
            "object_spaces", "open_face_y_m", "robot_observation", "robot_spaces", "start_pose"]

@@ -55,6 +55,7 @@ import pinocchio as pin
 from gymnasium import spaces
 
 from pickplace.envs.common import (
+    RenderedEnv,
     Views,
     check_bool,
     check_objects,
@@ -103,7 +104,7 @@ class _Stop(Exception):
     """The controller cannot go on (a singular Cartesian Jacobian)."""
 
 
-class PickPlaceLowLevelEnv(gym.Env):
+class PickPlaceLowLevelEnv(RenderedEnv, gym.Env):
     """Pick and place one object by low-level commands: tcp (or joint) increments and a gripper command.
 
     Action (``Box(-1, 1)``): ``action_mode="cartesian"``: ``(dx, dy, dz, dyaw, grip)``, the tcp target moved by
@@ -489,24 +490,6 @@ class PickPlaceLowLevelEnv(gym.Env):
                 "object": self._robot.scene.object.name, "torque_saturation_steps": self._saturated}
         info.update(outcome)
         return info
-
-    def render(self) -> np.ndarray | None:
-        """An RGB frame (H, W, 3) of the scene's overview camera (render_mode ``rgb_array``), else None."""
-        if self.render_mode != "rgb_array" or self._views is None:
-            return None
-        return self._views.frame(self._d)
-
-    def _release(self) -> None:
-        if self._views is not None:
-            self._views.close()
-            self._views = None
-        if self._observer is not None:
-            self._observer.close()
-            self._observer = None
-
-    def close(self) -> None:
-        """Release the renderers and the camera's OpenGL contexts (closing twice is harmless)."""
-        self._release()
 
 
 __all__ = ["RATE_RANGE_HZ", "PickPlaceLowLevelEnv"]

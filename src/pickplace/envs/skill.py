@@ -45,6 +45,7 @@ from gymnasium import spaces
 
 from pickplace.envs.common import (
     POSITION_LIMIT_M,
+    RenderedEnv,
     Views,
     box,
     check_bool,
@@ -125,7 +126,7 @@ class _ChosenGrasp(PickPlaceSkill):
             self._dropped = saved
 
 
-class PickPlaceEnv(gym.Env):
+class PickPlaceEnv(RenderedEnv, gym.Env):
     """One object to pick and place; an action chooses the grasp (and optionally the place pose).
 
     Action: ``Discrete(max_grasps)``, the index of a grasp in the ranked candidate list of the object where the
@@ -380,26 +381,8 @@ class PickPlaceEnv(gym.Env):
         """The valid grasp indices now (max_grasps,) bool (the convention of masked-action learners)."""
         return self._mask.astype(bool)
 
-    def render(self) -> np.ndarray | None:
-        """An RGB frame (H, W, 3) of the scene's overview camera (render_mode ``rgb_array``), else None."""
-        if self.render_mode != "rgb_array" or self._views is None or self._d is None:
-            return None
-        return self._views.frame(self._d)
 
-    def _release(self) -> None:
-        if self._views is not None:
-            self._views.close()
-            self._views = None
-        if self._observer is not None:
-            self._observer.close()
-            self._observer = None
-
-    def close(self) -> None:
-        """Release the renderers and the camera's OpenGL contexts (closing twice is harmless)."""
-        self._release()
-
-
-class TaskEnv(gym.Env):
+class TaskEnv(RenderedEnv, gym.Env):
     """A task with several objects (``kind``: place, stack or clear); an action chooses the next object.
 
     Action: ``Discrete(max_objects + 1)``: ``k < max_objects`` picks and places the scene's object ``k`` (its goal
@@ -690,21 +673,6 @@ class TaskEnv(gym.Env):
         if self._run is None:
             return np.zeros(self.max_objects + 1, dtype=bool)
         return self._mask(self._run.measure.poses()).astype(bool)
-
-    def render(self) -> np.ndarray | None:
-        """An RGB frame (H, W, 3) of the scene's overview camera (render_mode ``rgb_array``), else None."""
-        if self.render_mode != "rgb_array" or self._views is None:
-            return None
-        return self._views.frame(self._d)
-
-    def _release(self) -> None:
-        if self._views is not None:
-            self._views.close()
-            self._views = None
-
-    def close(self) -> None:
-        """Release the renderers (closing twice is harmless)."""
-        self._release()
 
 
 class PlaceEnv(TaskEnv):
