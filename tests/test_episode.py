@@ -23,10 +23,12 @@ import pytest
 
 from pickplace.errors import ConfigError
 from pickplace.eval.campaign.store import toml_dumps
+from pickplace.motion.control import ControlConfig
 from pickplace.task.episode import EpisodeConfig, EpisodeResult, run_episode
 from pickplace.task.machine import Phase
 
 PLACE_ERROR_MAX_M = 1.4e-3  # the reference design's RMS place error, beaten on every episode
+LINE_DEVIATION_MAX_M = 1e-3  # the tcp on its straight line in the final approach and the set-down (issue 15)
 STABLE_ERROR_MAX_M = 2e-3  # the cube within 2 mm of B 1 s after release
 CYCLE_TIME_MAX_S = 8.2  # the reference design's cycle time
 TRACKING_MAX_RAD = 5e-3  # the reference design's tracking bound
@@ -39,7 +41,10 @@ def _report(label: str, r: EpisodeResult) -> None:
           f"{r.place_error_yaw_rad:+.1e} rad), cycle {r.cycle_time_s:.3f} s, tracking max "
           f"{r.tracking_error_max_rad * 1e3:.4f} mrad, saturation {r.torque_saturation_events}, slip "
           f"{r.slip_max_m * 1e3:.2f} mm, lift load {r.lift_load_n:.3f} N, wall {r.wall_time_s:.2f} s, "
-          f"real-time factor {r.real_time_factor:.1f}")
+          f"real-time factor {r.real_time_factor:.1f}, steps over a limit {r.limit_violations} (peaks speed "
+          f"{r.joint_speed_ratio_max:.3f}, acceleration {r.joint_acceleration_ratio_max:.3f}, torque "
+          f"{r.torque_ratio_max:.3f}; holding still {r.hold_limit_violations}), off the line "
+          f"{r.approach_line_deviation_max_m * 1e3:.3f} / {r.place_line_deviation_max_m * 1e3:.3f} mm")
 
 
 def _assert_meets_targets(r: EpisodeResult) -> None:
@@ -59,6 +64,11 @@ def _assert_meets_targets(r: EpisodeResult) -> None:
     mg = r.config.scene.object.mass_kg * 9.81
     assert r.lift_load_n == pytest.approx(mg, rel=0.05)  # the pads carry the cube's weight at the top
     assert r.ik_position_error_m < 1e-4 and r.ik_orientation_error_rad < 1e-4
+    # every 1 ms step of every motion within the UR5e's joint speed, acceleration and torque limits
+    assert r.limit_violations == 0, f"{r.limit_violations_by_phase}; worst: {r.limit_worst}"
+    assert max(r.joint_speed_ratio_max, r.joint_acceleration_ratio_max, r.torque_ratio_max) <= 1.0
+    assert r.approach_line_deviation_max_m <= LINE_DEVIATION_MAX_M
+    assert r.place_line_deviation_max_m <= LINE_DEVIATION_MAX_M
 
 
 @pytest.fixture(scope="module")
@@ -66,11 +76,20 @@ def default_episode() -> EpisodeResult:
     return run_episode(EpisodeConfig(), seed=0, record=True)
 
 
+@pytest.fixture(scope="module")
+def stepwise_episode() -> EpisodeResult:
+    """The default scene with the phases' motions one after another: every blend off (the arm stops at the
+    pregrasp, at the lift height, above the goal and after backing off), straight moves by the Cartesian loop."""
+    control = dataclasses.replace(ControlConfig(), blend_approach=False, blend_lift=False, blend_set_down=False,
+                                  blend_retract=False)
+    return run_episode(dataclasses.replace(EpisodeConfig(), control=control), seed=0)
+
+
 def test_default_episode_beats_the_reference(default_episode: EpisodeResult) -> None:
     r = default_episode
     _report("default scene", r)
     _assert_meets_targets(r)
-    assert r.cycle_time_s <= 4.5  # our own target is 4 s; the reference design's 8.2 s
+    assert r.cycle_time_s <= 3.3  # issue 15 (simulated time; 3.85 s with a stop at every phase); reference: 8.2 s
     assert sum(r.phase_durations_s.values()) == pytest.approx(r.cycle_time_s, abs=1e-9)
     assert set(r.plan_time_s) == {"approach", "transport", "return"}
     assert all(n >= 2 for n in r.waypoints_shortcut.values())
@@ -106,10 +125,88 @@ def test_reported_place_errors_are_the_cubes_measured_position(default_episode: 
     assert tel.t_s[-1] == pytest.approx(release_start + r.config.machine.stable_after_release_s, abs=2e-3)
 
 
-def test_tracking_errors_cover_every_phase_that_tracks(default_episode: EpisodeResult) -> None:
+def test_the_arm_moves_on_through_the_pregrasp_the_lift_and_the_preplace(default_episode: EpisodeResult) -> None:
+    """The approach runs into the descent, the lift into the transport into the set-down, the back-off into the way
+    home: the tcp passes each junction moving, and each phase still ran its own part (in order, checked by
+    ``_assert_meets_targets``). The final approach's straightness is measured here again, independently, from the
+    recorded tcp: the largest distance of any step of DESCEND from the line through its first and last."""
+    r, tel = default_episode, default_episode.telemetry
+    assert tel is not None
+    speed = np.linalg.norm(np.diff(tel.tcp_pos_m, axis=0), axis=1) / np.diff(tel.t_s)
+    spans = {name: (a, b) for name, a, b in tel.phase_spans()}
+    for phase in ("DESCEND", "EXEC_TRANSPORT", "DESCEND_PLACE"):
+        k = int(np.searchsorted(tel.t_s, spans[phase][0]))
+        assert speed[k] > 0.1, f"the tcp stopped where {phase} starts ({speed[k]:.3f} m/s)"
+    assert r.plan_time_s.keys() == {"approach", "transport", "return"}
+    descent = tel.tcp_pos_m[(tel.t_s >= spans["DESCEND"][0]) & (tel.t_s <= spans["DESCEND"][1])]
+    u = (descent[-1] - descent[0]) / np.linalg.norm(descent[-1] - descent[0])
+    off = descent - descent[0]
+    assert np.linalg.norm(off - np.outer(off @ u, u), axis=1).max() <= LINE_DEVIATION_MAX_M
+    assert np.linalg.norm(descent[-1] - descent[0]) == pytest.approx(0.15, abs=2e-3)  # pregrasp to grasp
+
+
+def test_the_phases_one_after_another_stop_between_them_and_keep_the_limits(stepwise_episode: EpisodeResult,
+                                                                            default_episode: EpisodeResult) -> None:
+    """With every blend off (how the realistic profile approaches and sets down), the straight moves are
+    Cartesian, timed long enough for the joints' limits too (the tcp's minimum-jerk profile alone asked the elbow
+    for 1.47 times its limit); the continuous motion saves half a second."""
+    r = stepwise_episode
+    _report("default scene, phases one after another", r)
+    _assert_meets_targets(r)
+    assert default_episode.cycle_time_s < r.cycle_time_s - 0.5
+    assert abs(r.place_error_xy_m - default_episode.place_error_xy_m) < 1e-4
+
+
+@pytest.mark.parametrize(("label", "scene"), [
+    ("heavy and slippery", {"cube_mass_kg": 1.0, "cube_friction": 0.6}),
+    ("light and small", {"cube_mass_kg": 0.05, "cube_size_m": 0.03}),
+    ("large, grippy, turned far out", {"cube_size_m": 0.05, "cube_friction": 1.5, "cube_yaw_rad": -0.785,
+                                       "cube_start_xy_m": (0.55, 0.15)}),
+    ("near the base to a turned goal", {"cube_start_xy_m": (0.25, 0.15), "goal_yaw_rad": 0.6}),
+], ids=lambda v: v if isinstance(v, str) else "")
+def test_varied_scenes_keep_the_limits_and_the_lines(label: str, scene: dict) -> None:
+    """Masses, sizes, frictions and poses the arm must cope with differently (the lift's support reserve grows
+    with the mass; the lines and the speeds with the pose): every 1 ms step within the limits, the tcp on its lines."""
+    r = run_episode(EpisodeConfig().with_scene(**scene), seed=0)
+    _report(label, r)
+    _assert_meets_targets(r)
+
+
+def test_a_stretched_out_arm_still_moves_on_through_its_straight_moves() -> None:
+    """A tall box far out (a 0.4 kg sugar box at (0.557, 0.30) m): at its pregrasp the arm is nearly stretched out
+    (elbow 0.13 rad), the joints turn fast along the descent, and a spline through its 1 cm waypoints strays more than
+    0.5 mm off the line; the straight moves are re-solved every 2.5 mm and the motion is still one, within the limits
+    at every step, the tcp on its lines."""
+    from pickplace.world.objects import library_object
+
+    base = EpisodeConfig()
+    box = dataclasses.replace(library_object("sugar_box"), mass_kg=0.4)
+    config = dataclasses.replace(base, scene=dataclasses.replace(base.scene, object=box, start_xy_m=(0.557, 0.30),
+                                                                 start_yaw_rad=2.0))
+    r = run_episode(config, seed=0, record=True)
+    _report("sugar box far out", r)
+    _assert_meets_targets(r)
+    tel = r.telemetry
+    assert tel is not None
+    speed = np.linalg.norm(np.diff(tel.tcp_pos_m, axis=0), axis=1) / np.diff(tel.t_s)
+    spans = {name: (a, b) for name, a, b in tel.phase_spans()}
+    for phase in ("DESCEND", "EXEC_TRANSPORT", "DESCEND_PLACE"):  # moving (the joints' speeds bound the tcp's)
+        k = int(np.searchsorted(tel.t_s, spans[phase][0]))
+        assert speed[k] > 0.03, f"the tcp stopped where {phase} starts ({speed[k]:.3f} m/s)"
+
+
+def test_tracking_errors_cover_every_phase_that_tracks(default_episode: EpisodeResult,
+                                                       stepwise_episode: EpisodeResult) -> None:
     """Joint loops (trajectories, holds) and Cartesian moves are each measured in the phase they ran in; the
-    episode's figures are the maxima over all phases."""
+    episode's figures are the maxima over all phases. Moving on between the phases, every motion is a joint loop;
+    one after another, the straight moves are Cartesian."""
     r = default_episode
+    by_phase = r.tracking_by_phase
+    assert {p for p, t in by_phase.items() if t.cartesian_steps > 0} == set()
+    assert {p for p, t in by_phase.items() if t.joint_steps > 0} >= {
+        "EXEC_APPROACH", "DESCEND", "CLOSE", "LIFT", "EXEC_TRANSPORT", "DESCEND_PLACE", "RELEASE", "RETRACT"}
+    assert math.isnan(r.tcp_tracking_error_max_m)
+    r = stepwise_episode
     by_phase = r.tracking_by_phase
     cartesian = {p for p, t in by_phase.items() if t.cartesian_steps > 0}
     joint = {p for p, t in by_phase.items() if t.joint_steps > 0}

@@ -120,7 +120,8 @@ def test_pads_that_would_miss_the_cube_are_caught_before_closing() -> None:
     r = _run(FaultConfig(tcp_offset_error_m=0.03), recovery=False)
     _report("tcp offset +30 mm (pads would miss the cube)", r, r.phase_durations_s["DESCEND"])
     assert (r.failure_phase, r.failure_kind) == ("DESCEND", "PhaseFailed")
-    assert "the tcp is 30.0 mm from its grasp on the cube" in r.failure_reason
+    off = re.search(r"the tcp is ([0-9.]+) mm from its grasp on the cube", r.failure_reason)
+    assert off and float(off.group(1)) == pytest.approx(30.0, abs=0.5), r.failure_reason
     assert "CLOSE" not in r.phase_durations_s
 
 
@@ -167,12 +168,13 @@ def test_cube_bumped_after_the_release_fails_the_place() -> None:
 
 
 def test_heavier_cube_is_weighed_and_compensated() -> None:
-    """The cube is 5x heavier than believed: the lift sags 2 mm; the pads weigh it and the payload is fixed."""
+    """The cube is 5x heavier than believed: the lift sags (13 mm below its reference as the lift runs on into the
+    transport, 2 mm short of its height for a Cartesian lift); the pads weigh it and the payload is fixed."""
     faults = FaultConfig(true_mass_scale=5.0)
     r = _run(faults, recovery=False)
     _report("cube 5x heavier, no recovery", r)
     assert (r.failure_phase, r.failure_kind) == ("LIFT", "PhaseFailed")
-    assert "from the lift height" in r.failure_reason
+    assert "lift height" in r.failure_reason
     assert _kg(r.failure_reason, "cube weighed") == pytest.approx(0.75, rel=0.02)
 
     r = _run(faults, recovery=True)

@@ -320,3 +320,106 @@ def test_bad_path_raises_clear_error(path: object, match: str) -> None:
     with pytest.raises(ConfigError, match=match) as info:
         retime(path)  # type: ignore[arg-type]
     assert isinstance(info.value, PickPlaceError) and isinstance(info.value, ValueError)
+
+
+# --------------------------------------------------------------------------- #
+# several parts timed as one motion (retime_parts), offsets blended in while it runs
+# --------------------------------------------------------------------------- #
+
+
+def _corner_parts(speed: float = math.inf, reserve: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """A planned part (a straight joint segment) that meets a 'straight move' (20 closely spaced waypoints along a
+    gently curved joint path) at a corner of about 60 degrees in joint space."""
+    planned = np.array([[0.0, -1.2, 1.0, -1.4, -1.5, 0.0], [0.6, -1.0, 1.2, -1.6, -1.5, 0.1]])
+    s = np.linspace(0.0, 1.0, 21)[:, None]
+    straight = planned[-1] + s * np.array([0.0, -0.25, 0.45, -0.2, 0.0, 0.0]) + s**2 * np.array([0, 0, 0.02, 0, 0, 0])
+    return planned, straight
+
+
+def test_parts_are_timed_as_one_motion_that_does_not_stop_between_them() -> None:
+    """The arm passes the junction moving, within the limits at every 1 ms sample; it is on the junction's waypoint
+    when ``part_times_s`` says; the straight part's spline passes through each of its waypoints."""
+    from pickplace.motion.timing import PathPart, retime_parts
+
+    cfg = TimingConfig.ur5e()
+    planned, straight = _corner_parts()
+    traj = retime_parts([PathPart(planned), PathPart(straight, straight=True)], cfg)
+    t0, t_join, t_end = traj.part_times_s
+    assert t0 == 0.0 and 0.0 < t_join < t_end == traj.duration_s
+    q_join, qd_join, _ = traj.sample(t_join)
+    np.testing.assert_allclose(q_join, planned[-1], atol=1e-4)
+    assert float(np.linalg.norm(qd_join)) > 0.2  # rad/s: moving on, not stopped
+    _, q, qd, qdd = sample_grid(traj)
+    assert np.max(np.abs(qd) / np.array(cfg.velocity_limits_rad_s)) <= 1.0 + LIMIT_TOL
+    assert np.max(np.abs(qdd) / np.array(cfg.acceleration_limits_rad_s2)) <= 1.0 + LIMIT_TOL
+    assert np.linalg.norm(q[-1] - straight[-1]) < 1e-6 and np.abs(qd[-1]).max() < 1e-6
+    # every waypoint of the straight move is on the trajectory (the spline interpolates them)
+    dense = traj.sample_many(np.linspace(t_join, t_end, 4001))[0]
+    assert max(float(np.min(np.linalg.norm(dense - w, axis=1))) for w in straight) < 2e-4
+    # stopping at the junction instead takes longer
+    apart = retime(planned, cfg).duration_s + retime(straight, cfg).duration_s
+    assert traj.duration_s < apart - 0.05
+
+
+def test_a_part_keeps_its_speed_limit_and_its_reserve() -> None:
+    """A speed limit along a part bounds its speed there (here the 'tcp' is the joint vector itself: rate |q'|);
+    a part with a reserve is timed within that much less of the acceleration limits."""
+    from pickplace.motion.timing import PathPart, retime_parts
+
+    cfg = TimingConfig.ur5e()
+    planned, straight = _corner_parts()
+
+    def rate(qs: np.ndarray, dqs: np.ndarray) -> np.ndarray:
+        return np.linalg.norm(dqs, axis=1)
+
+    traj = retime_parts([PathPart(planned), PathPart(straight, straight=True, tcp_speed_m_s=0.3, reserve=0.2)],
+                        cfg, rate)
+    ts = np.arange(traj.part_times_s[1] + 0.02, traj.duration_s, DT_S)
+    _, qd, qdd = traj.sample_many(ts)
+    assert np.linalg.norm(qd, axis=1).max() <= 0.3 * (1.0 + LIMIT_TOL)
+    assert np.max(np.abs(qdd) / np.array(cfg.acceleration_limits_rad_s2)) <= 0.8 * (1.0 + LIMIT_TOL)
+    free = retime_parts([PathPart(planned), PathPart(straight, straight=True)], cfg)
+    assert traj.duration_s > free.duration_s
+
+
+def test_an_offset_moves_the_end_smoothly_within_the_room_it_has() -> None:
+    """``with_offset`` bends the rest of a trajectory to a new end without a jump; ``offset_headroom`` is the share
+    of the offset that keeps every sample within the limits (the part was timed with a reserve)."""
+    from pickplace.motion.timing import PathPart, retime_parts
+
+    cfg = TimingConfig.ur5e()
+    planned, straight = _corner_parts()
+    traj = retime_parts([PathPart(planned), PathPart(straight, straight=True, reserve=0.05)], cfg)
+    t0 = traj.part_times_s[1]
+    vlim, alim = np.array(cfg.velocity_limits_rad_s), np.array(cfg.acceleration_limits_rad_s2)
+    small = np.full(6, 2e-3)
+    assert traj.offset_headroom(t0, small, vlim, alim, DT_S) == pytest.approx(1.0)
+    bent = traj.with_offset(t0, small)
+    np.testing.assert_allclose(bent.end, traj.end + small, atol=1e-12)
+    for t in (0.5 * t0, t0):  # nothing changes before it starts, and it starts at rest
+        for a, b in zip(bent.sample(t), traj.sample(t), strict=True):
+            np.testing.assert_allclose(a, b, atol=1e-12)
+    _, _, _, qdd = sample_grid(bent)
+    assert np.max(np.abs(qdd) / alim) <= 1.0 + LIMIT_TOL
+    big = np.full(6, 0.2)
+    share = traj.offset_headroom(t0, big, vlim, alim, DT_S)
+    assert 0.0 < share < 1.0
+    _, _, _, qdd = sample_grid(traj.with_offset(t0, share * big))
+    assert np.max(np.abs(qdd) / alim) <= 1.0 + 1e-3  # checked on its own 1 ms grid, sampled on another here
+    slow = bent.slowed(2.0)
+    assert slow.part_times_s == pytest.approx(tuple(2.0 * t for t in bent.part_times_s))
+    np.testing.assert_allclose(slow.end, bent.end, atol=1e-12)
+
+
+def test_parts_that_do_not_meet_or_lack_what_they_need_are_refused() -> None:
+    from pickplace.motion.timing import PathPart, retime_parts
+
+    planned, straight = _corner_parts()
+    with pytest.raises(ConfigError, match=r"parts\[1\]\.waypoints\[0\]"):
+        retime_parts([PathPart(planned), PathPart(straight + 0.01, straight=True)])
+    with pytest.raises(ConfigError, match="tcp_rate"):
+        retime_parts([PathPart(planned), PathPart(straight, straight=True, tcp_speed_m_s=0.5)])
+    with pytest.raises(ConfigError, match=r"part\.reserve"):
+        PathPart(straight, reserve=0.9)
+    with pytest.raises(TimingFailed):  # a check that never passes
+        retime_parts([PathPart(planned, is_valid=lambda q: False), PathPart(straight, straight=True)])

@@ -313,6 +313,14 @@ def print_episode(result: EpisodeResult, console: Console) -> None:
     t.add_row("force closure (margin)", "—", f"{'yes' if result.force_closure else 'no'} ({result.grasp_margin:.3f})")
     t.add_row("slip in the grip (max)", "—", _mm(result.slip_max_m))
     t.add_row("torque saturation", DESIGN_NOTE["saturation"], f"{result.torque_saturation_events} steps")
+    t.add_row("joint limits, every 1 ms step of the motions: steps over / peak speed, acceleration, torque", "—",
+              f"{result.limit_violations} / {result.joint_speed_ratio_max:.3f}, "
+              f"{result.joint_acceleration_ratio_max:.3f}, {result.torque_ratio_max:.3f} of the limits")
+    t.add_row("joint limits while the arm holds still (contacts jolting it): steps over", "—",
+              f"{result.hold_limit_violations}" + (f" (worst: {result.hold_limit_worst})"
+                                                   if result.hold_limit_violations else ""))
+    t.add_row("tcp off its straight line: final approach / set-down (max)", "—",
+              f"{_mm(result.approach_line_deviation_max_m)} / {_mm(result.place_line_deviation_max_m)}")
     t.add_row("IK residual (max)", "—",
               f"{_mm(result.ik_position_error_m)} / {result.ik_orientation_error_rad:.1e} rad")
     plan = ", ".join(f"{k} {v * 1e3:.1f} ms ({result.waypoints_raw[k]}→{result.waypoints_shortcut[k]} wp)"

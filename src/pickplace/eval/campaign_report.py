@@ -199,6 +199,11 @@ def summary_rows(summary: CampaignSummary) -> list[tuple[str, str]]:
          f"{_fmt(summary.plan_time_median_s, 1e3)} / {_fmt(summary.plan_time_p95_s, 1e3)} ms"),
         ("joint tracking error max (trajectories and holds)", f"{_fmt(summary.tracking_error_max_rad, 1e3)} mrad"),
         ("tcp tracking error max (Cartesian moves)", f"{_fmt(summary.tcp_tracking_error_max_m, 1e3)} mm"),
+        ("1 ms steps of the motions over a joint speed, acceleration or torque limit (trials with any)",
+         f"{summary.limit_violations} ({summary.trials_over_limits} trials); peak "
+         f"{_fmt(summary.joint_limit_ratio_max)} of a limit"),
+        ("tcp off its straight line max: final approach / set-down",
+         f"{_fmt(summary.approach_line_deviation_max_m, 1e3)} / {_fmt(summary.place_line_deviation_max_m, 1e3)} mm"),
         ("wall time per trial (mean)", f"{_fmt(summary.wall_time_mean_s)} s"),
         ("successes that needed a recovery", f"{summary.successes_with_recovery} of {summary.successes}"),
         ("trials per number of retries (retries: trials; all but worker failures)", retries_histogram_text(summary)),

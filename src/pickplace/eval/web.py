@@ -50,6 +50,10 @@ MAX_GROUP = 2
 FORCE_SCALE_M_PER_N = 0.004
 #: Pad forces below this are not drawn (N).
 MIN_FORCE_N = 0.2
+#: Times are shown rounded to 0.1 ms (the slider's); a time is looked up this much later (s), so that a rounded
+#: time finds the sample (or frame) it was rounded from: a phase that starts at 0.98100000000000004 s is shown
+#: at 0.981 s, in that phase.
+ROUNDING_S = 5e-5
 #: Bodies farther than this from the origin are parked out of the way (the fault's intruder before it
 #: appears): not drawn (m).
 PARKED_M = 3.0
@@ -466,7 +470,8 @@ class EpisodeViewer:
         tel = self.episode.telemetry
         with self._lock, self.server.atomic():
             self._t = t
-            f = max(0, int(np.searchsorted(self._frame_t, t, side="right")) - 1) if self._frame_t.size else -1
+            t_look = t + ROUNDING_S  # the samples, frames, plans and windows of the time shown (rounded)
+            f = max(0, int(np.searchsorted(self._frame_t, t_look, side="right")) - 1) if self._frame_t.size else -1
             if f >= 0 and f != self._shown_frame:
                 for k, node in enumerate(self._body_nodes):
                     p = self._pos[f, k]
@@ -474,9 +479,9 @@ class EpisodeViewer:
                     _set_visible(node, bool(np.linalg.norm(p) <= PARKED_M))
                 self._shown_frame = f
             for t_plan, node in self._paths:
-                _set_visible(node, t_plan <= t)
+                _set_visible(node, t_plan <= t_look)
             for window, node in self._grasps:
-                _set_visible(node, window.start_s <= t < window.end_s)
+                _set_visible(node, window.start_s <= t_look < window.end_s)
             for pad, node in enumerate(self._force_nodes):
                 force = tel.frame_pad_force_n[f, pad] if 0 <= f < tel.frame_pad_force_n.shape[0] else np.zeros(3)
                 on = float(np.linalg.norm(force)) >= MIN_FORCE_N
@@ -562,7 +567,7 @@ def _now(tel: Any, t: float) -> str:
     """The phase and the pad forces at time ``t`` (s)."""
     if tel.t_s.size == 0:
         return f"t = {t:.3f} s"
-    i = min(max(0, int(np.searchsorted(tel.t_s, t, side="right")) - 1), tel.t_s.size - 1)
+    i = min(max(0, int(np.searchsorted(tel.t_s, t + ROUNDING_S, side="right")) - 1), tel.t_s.size - 1)
     phase = tel.phase_names[int(tel.phase[i])]
     left, right = (float(v) for v in tel.pad_force_n[i])
     return f"t = {t:.3f} s · **{phase}** · pad forces {left:.1f} / {right:.1f} N"

@@ -156,6 +156,17 @@ class ControlConfig:
             object's centre by the pose estimate's error is then centred by the first pad to touch, instead of
             that pad pushing the arm (and the object) until the second arrives. The ideal robot knows the
             object's pose exactly and holds rigidly (default off); :meth:`realistic` turns it on.
+        blend_approach: The approach runs into the straight descent to the grasp without stopping at the pregrasp:
+            one trajectory, the planned path and the descent's IK waypoints timed together
+            (:func:`~pickplace.motion.timing.retime_parts`), the tcp on the descent's line from the pregrasp on.
+            Off: the arm stops at the pregrasp and descends by a Cartesian move. A robot that looks at the object
+            from there stops whatever this says (only one that reads the object's pose from the simulation, the
+            ideal profile's, runs through): :meth:`realistic` turns it off.
+        blend_lift: The lift runs into the transport (planned before the lift, from the grip as it settled).
+        blend_set_down: The transport runs into the set-down, re-aimed while it runs from the object's pose in
+            the hand as it passes the preplace. Off: the arm stops above the goal, re-aims and sets the object
+            down by a guarded Cartesian move (a robot that looks at the object in its hand there always does).
+        blend_retract: The back-off from the released object runs into the way home.
     """
 
     joint_kp_nm_rad: tuple[float, ...] = (200.0, 200.0, 200.0, 100.0, 100.0, 100.0)
@@ -186,9 +197,16 @@ class ControlConfig:
     joint_bandwidth_rad_s: float = 0.0
     joint_integral_zero_rad_s: float = 0.0
     comply_while_closing: bool = False
+    blend_approach: bool = True
+    blend_lift: bool = True
+    blend_set_down: bool = True
+    blend_retract: bool = True
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
+        for name in ("blend_approach", "blend_lift", "blend_set_down", "blend_retract"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"control.{name}", getattr(self, name), "must be true or false")
         set_(self, "joint_kp_nm_rad", check_vector("control.joint_kp_nm_rad", self.joint_kp_nm_rad, N_ARM,
                                                    0.0, 1e5, lo_open=True, unit="N m/rad"))
         set_(self, "joint_damping_ratio", check_range("control.joint_damping_ratio", self.joint_damping_ratio,
@@ -287,10 +305,14 @@ class ControlConfig:
         150 rad/s, so 80 rad/s keeps a gain margin of about 2. Against Coulomb friction a stiffer loop has a
         narrower stick band (``F_c / (w^2 M)``): at 80 rad/s the straight moves settle within their 0.2 mm about
         20 ms after the profile (60 rad/s: 0.3 s) and the joint moves stay within 2 mrad (the diagonal gains: 4.2).
+
+        The approach stops at the pregrasp and the transport above the goal (``blend_approach`` and
+        ``blend_set_down`` off): the robot looks at the object from the hand at both, and sets it down by a guarded
+        move that stops when the wrist feels the table take the weight.
         """
         return cls(joint_bandwidth_rad_s=80.0, joint_damping_ratio=1.0, joint_integral_zero_rad_s=32.0,
                    cartesian_bandwidth_rad_s=80.0, cartesian_damping_ratio=1.0, cartesian_integral_zero_rad_s=32.0,
-                   comply_while_closing=True)
+                   comply_while_closing=True, blend_approach=False, blend_set_down=False)
 
     @property
     def joint_kp(self) -> np.ndarray:
@@ -1104,8 +1126,15 @@ def track(
     noise: JointNoise | None = None,
     loop: ControlLoop | None = None,
     settle_s: float = 0.1,
+    start_s: float = 0.0,
+    stop_s: float | None = None,
 ) -> TrackingRecord:
     """Track a joint trajectory with joint impedance, then hold its final point for ``settle_s``.
+
+    ``start_s`` and ``stop_s`` track only a part of it (times on the physics step grid, s): the arm is on the
+    trajectory at ``start_s`` (a previous call tracked it up to there) and the loop ends at ``stop_s`` without
+    holding anything (the next call goes on from there), so that a motion that does not stop can be run phase
+    by phase. The reference keeps the same step grid from the trajectory's start, whatever the part.
 
     Args:
         robot: The models.
@@ -1123,13 +1152,21 @@ def track(
         The :class:`TrackingRecord`.
 
     Raises:
-        ConfigError: ``settle_s`` is negative or not finite.
+        ConfigError: ``settle_s`` is negative or not finite, or ``start_s`` and ``stop_s`` are not a part of the
+            trajectory (``stop_s`` after ``start_s``).
         ControlError: the joint error exceeds ``config.max_joint_error_rad`` (or the state is not finite).
     """
     settle_s = check_range("track.settle_s", settle_s, 0.0, 60.0, unit="s")
     dt = float(robot.mj.opt.timestep)
-    n = _whole_periods(math.ceil(trajectory.duration_s / dt - 1e-9) + round(settle_s / dt), _period(robot, loop))
-    qs, _, _ = trajectory.sample_many(np.arange(-1, n + 1) * dt)
+    period = _period(robot, loop)
+    k0 = round(check_range("track.start_s", start_s, 0.0, trajectory.duration_s, unit="s") / dt)
+    end = math.ceil(trajectory.duration_s / dt - 1e-9)
+    if stop_s is None:
+        n = _whole_periods(end - k0 + round(settle_s / dt), period)
+    else:
+        stop_s = check_range("track.stop_s", stop_s, start_s, trajectory.duration_s + dt, unit="s")
+        n = _whole_periods(max(1, math.ceil(stop_s / dt - 1e-9) - k0), period)
+    qs, _, _ = trajectory.sample_many((k0 + np.arange(-1, n + 1)) * dt)
     q_ref, qd_ref, qdd_ref = _grid_reference(qs, dt)
     return _run_joint(robot, data, "track", q_ref, qd_ref, qdd_ref, config, payload, hook, noise, loop)
 
@@ -1261,6 +1298,7 @@ def move_vertical(
     loop: ControlLoop | None = None,
     duration_s: float | None = None,
     raise_on_timeout: bool = True,
+    joint_limits: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> CartesianRecord:
     """Move the tcp vertically to ``target_z_m`` (m), holding x, y and the orientation: :func:`move_linear` to
     the point straight above or below the tcp's position now.
@@ -1272,7 +1310,8 @@ def move_vertical(
     target_z_m = check_range("move_vertical.target_z_m", target_z_m, -2.0, 2.0, unit="m")
     start = _tcp_now(robot, data)
     return move_linear(robot, data, np.array([start[0], start[1], target_z_m]), config, payload=payload, hook=hook,
-                       noise=noise, loop=loop, duration_s=duration_s, raise_on_timeout=raise_on_timeout)
+                       noise=noise, loop=loop, duration_s=duration_s, raise_on_timeout=raise_on_timeout,
+                       joint_limits=joint_limits)
 
 
 def _tcp_now(robot: Robot, data: mujoco.MjData) -> np.ndarray:
@@ -1282,6 +1321,57 @@ def _tcp_now(robot: Robot, data: mujoco.MjData) -> np.ndarray:
     pdata = robot.pin.createData()
     pin.framesForwardKinematics(robot.pin, pdata, q)
     return pdata.oMf[robot.pin_tcp_frame].translation.copy()
+
+
+#: Integration steps of the joint path along a straight tcp move (:func:`line_duration_s`).
+_LINE_STEPS = 16
+
+
+def line_duration_s(arm: ArmModel, q0: np.ndarray, finger_m: float, delta_m: np.ndarray,
+                    velocity_limits: np.ndarray, acceleration_limits: np.ndarray) -> float:
+    """The shortest minimum-jerk profile (s) of a straight tcp move by ``delta_m`` (3,) (m) from ``q0`` (6,),
+    orientation held, whose joint speeds and accelerations stay within the limits (6,) (rad/s, rad/s^2).
+
+    Along the line ``p(sigma) = p0 + sigma delta`` the joints move by ``q' = J^-1 [delta; 0]`` and
+    ``q'' = -J^-1 Jdot(q, q') q'`` per unit of ``sigma`` (integrated from ``q0`` by the midpoint rule); with
+    ``sigma(tau)`` the minimum-jerk profile over ``T``, ``qd = q' sigma_tau / T`` and ``qdd = (q'' sigma_tau^2 +
+    q' sigma_tautau) / T^2``, so the shortest ``T`` is their largest ratio to the limits (speed) or its square root
+    (acceleration). A move near a singularity asks the joints for much more than the tcp's limits suggest: the
+    min-jerk profile of the tcp's limits alone asked the UR5e's elbow for 11.7 rad/s^2 (limit 8) on the default
+    scene's 15 cm descent.
+    """
+    model, data, fid = arm.model, arm.data, arm.tcp_frame
+    qp, vp = arm._q.copy(), np.zeros(model.nv)
+    qp[N_ARM:] = finger_m
+    twist = np.zeros(6)
+    twist[:3] = delta_m
+
+    def rates(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        qp[:N_ARM] = q
+        pin.computeJointJacobians(model, data, qp)
+        J = pin.getFrameJacobian(model, data, fid, _LWA)[:, :N_ARM]
+        dq = np.linalg.solve(J, twist)
+        vp[:N_ARM] = dq
+        pin.forwardKinematics(model, data, qp, vp, arm._zero)
+        jdot = pin.getFrameClassicalAcceleration(model, data, fid, _LWA).vector
+        return dq, -np.linalg.solve(J, jdot)
+
+    sig = np.linspace(0.0, 1.0, _LINE_STEPS + 1)
+    d1 = np.empty((sig.size, N_ARM))
+    d2 = np.empty((sig.size, N_ARM))
+    q = np.asarray(q0, dtype=float).copy()
+    h = 1.0 / _LINE_STEPS
+    for k in range(sig.size):
+        d1[k], d2[k] = rates(q)
+        if k < _LINE_STEPS:
+            q = q + h * rates(q + 0.5 * h * d1[k])[0]
+    tau = np.linspace(0.0, 1.0, 201)
+    s_tau, sd_tau, sdd_tau = min_jerk(tau, 1.0)
+    q1 = np.stack([np.interp(s_tau, sig, d1[:, j]) for j in range(N_ARM)], axis=1)
+    q2 = np.stack([np.interp(s_tau, sig, d2[:, j]) for j in range(N_ARM)], axis=1)
+    speed = np.abs(q1 * sd_tau[:, None]) / np.asarray(velocity_limits, dtype=float)
+    accel = np.abs(q2 * sd_tau[:, None] ** 2 + q1 * sdd_tau[:, None]) / np.asarray(acceleration_limits, dtype=float)
+    return max(float(speed.max()), math.sqrt(float(accel.max())))
 
 
 def move_linear(
@@ -1296,11 +1386,13 @@ def move_linear(
     loop: ControlLoop | None = None,
     duration_s: float | None = None,
     raise_on_timeout: bool = True,
+    joint_limits: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> CartesianRecord:
     """Move the tcp along a straight line to ``target_m`` with Cartesian impedance, holding its orientation.
 
     The position follows a minimum-jerk profile along the segment from the current position (duration from
-    :meth:`ControlConfig.vertical_duration_s` for its length unless given); the orientation is regulated to
+    :meth:`ControlConfig.vertical_duration_s` for its length unless given, and with ``joint_limits`` at least
+    :func:`line_duration_s`: long enough for the joints too); the orientation is regulated to
     the one at the start (the UR5e has no null space left to regulate a posture in). The move ends once the
     profile is over and the tcp is within ``config.height_tolerance_m`` of the target, moving slower than
     ``config.settle_speed_m_s`` (in a realistic loop: its mean speed over :data:`SETTLE_SPEED_WINDOW_S`); it times
@@ -1318,6 +1410,8 @@ def move_linear(
             the ideal loop (exact state, every physics step).
         duration_s: Profile duration (s), overriding the config's speed and acceleration limits.
         raise_on_timeout: Raise :class:`ControlError` on timeout; otherwise return with ``reached=False``.
+        joint_limits: Joint speed (6,) (rad/s) and acceleration (6,) (rad/s^2) limits the profile must keep
+            (:func:`line_duration_s`), or None (the tcp's limits only). Ignored with ``duration_s``.
 
     Returns:
         The :class:`CartesianRecord`.
@@ -1343,8 +1437,12 @@ def move_linear(
     delta = target - p0
     length = float(np.linalg.norm(delta))
     direction = delta / length if length > 0.0 else np.array([0.0, 0.0, 1.0])
-    T = (check_range("move_linear.duration_s", duration_s, dt, 60.0, unit="s") if duration_s is not None
-         else max(config.vertical_duration_s(length), dt))
+    if duration_s is not None:
+        T = check_range("move_linear.duration_s", duration_s, dt, 60.0, unit="s")
+    else:
+        T = max(config.vertical_duration_s(length), dt)
+        if joint_limits is not None and length > 0.0:
+            T = max(T, line_duration_s(arm, q0, float(qpos[finger]), delta, *joint_limits))
     n_profile = math.ceil(T / dt - 1e-9)
     n_max = _whole_periods(n_profile + round(config.settle_timeout_s / dt), period)
     s, _, _ = min_jerk(np.arange(-1, n_max + 1) * dt, T)
@@ -1473,6 +1571,7 @@ __all__ = [
     "hold",
     "implicit_damping",
     "joint_impedance",
+    "line_duration_s",
     "min_jerk",
     "modal_damping_matrix",
     "move_linear",

@@ -12,6 +12,12 @@ trajectory that respects per-joint velocity and acceleration limits:
    between gridpoints exceeds a limit.
 
 The output is evaluated exactly as TOPP-RA models it: constant path acceleration per grid stage.
+
+:func:`retime_parts` times several pieces of path as one motion that does not stop where they meet (a planned
+path that runs into a straight tcp move, the lift that runs into the transport): the straight moves' IK
+waypoints are interpolated as given, the planned pieces loosely (see :class:`PathPart`), and the trajectory
+knows when it passes each junction (:attr:`Trajectory.part_times_s`), so that a motion can be run, and reported,
+phase by phase.
 """
 
 from __future__ import annotations
@@ -21,7 +27,7 @@ import itertools
 import logging
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -117,6 +123,8 @@ class Trajectory:
         peak_velocity_ratio: max |qd_j| / vlim_j over the checked points (gridpoints and stage quarters).
         peak_acceleration_ratio: max |qdd_j| / alim_j over the same points.
         densify_rounds: Extra densification rounds that ``is_segment_valid`` required.
+        part_times_s: Times (s) at which the trajectory passes the start of each of its parts and its end
+            (:func:`retime_parts`; ``(0, duration)`` for one path).
     """
 
     waypoints: np.ndarray
@@ -132,6 +140,12 @@ class Trajectory:
     _t: np.ndarray = field(repr=False)  # (n,) time at each gridpoint (s)
     _sd: np.ndarray = field(repr=False)  # (n,) path speed ds/dt at each gridpoint (rad/s)
     _u: np.ndarray = field(repr=False)  # (n-1,) constant path acceleration of each stage (rad/s^2)
+    part_times_s: tuple[float, ...] = ()
+    _offset: tuple[float, float, np.ndarray] | None = field(default=None, repr=False)  # (t0, t1, dq): with_offset
+
+    def __post_init__(self) -> None:
+        if not self.part_times_s:
+            object.__setattr__(self, "part_times_s", (0.0, float(self.duration_s)))
 
     def slowed(self, factor: float) -> Trajectory:
         """The same path run ``factor`` (>= 1) times slower: velocities divided by the factor, accelerations by
@@ -139,10 +153,50 @@ class Trajectory:
         k = float(factor)
         if not (math.isfinite(k) and k >= 1.0):
             raise ValueError(f"factor must be a finite number >= 1, got {factor!r}")
+        offset = None if self._offset is None else (self._offset[0] * k, self._offset[1] * k, self._offset[2])
         return dataclasses.replace(self, duration_s=self.duration_s * k,
                                    peak_velocity_ratio=self.peak_velocity_ratio / k,
                                    peak_acceleration_ratio=self.peak_acceleration_ratio / k**2, _t=self._t * k,
-                                   _sd=self._sd / k, _u=self._u / k**2)
+                                   _sd=self._sd / k, _u=self._u / k**2,
+                                   part_times_s=tuple(t * k for t in self.part_times_s), _offset=offset)
+
+    def with_offset(self, t0_s: float, dq_rad: np.ndarray) -> Trajectory:
+        """The same trajectory with an offset ``dq_rad`` (6,) (rad) blended in from ``t0_s`` (s) to its end by a
+        minimum-jerk profile (0 before ``t0_s``, all of it from the end on): a correction of where it ends, made
+        while it runs. The offset adds ``1.875 |dq| / T`` of speed and ``5.77 |dq| / T^2`` of acceleration at most
+        (T the time left); :meth:`offset_headroom` says how much of it fits within limits."""
+        dq = np.array(dq_rad, dtype=float).reshape(N_JOINTS)
+        t0 = float(np.clip(t0_s, 0.0, self.duration_s))
+        if self.duration_s - t0 <= 0.0 or not np.any(dq):
+            return self
+        if self._offset is not None:
+            raise ValueError("the trajectory already has an offset")
+        dq.setflags(write=False)
+        return dataclasses.replace(self, _offset=(t0, self.duration_s, dq))
+
+    def offset_headroom(self, t0_s: float, dq_rad: np.ndarray, velocity_limits: np.ndarray,
+                        acceleration_limits: np.ndarray, dt_s: float) -> float:
+        """The largest fraction (0..1) of the offset ``dq_rad`` that :meth:`with_offset` can blend in from ``t0_s``
+        with the joints within ``velocity_limits`` (6,) and ``acceleration_limits`` (6,) at every ``dt_s`` (s):
+        the offset's velocity and acceleration add linearly, so each sample bounds the fraction."""
+        dq = np.asarray(dq_rad, dtype=float)
+        t0 = float(np.clip(t0_s, 0.0, self.duration_s))
+        T = self.duration_s - t0
+        if T <= 0.0 or not np.any(dq):
+            return 1.0
+        ts = np.arange(t0, self.duration_s + dt_s, dt_s)
+        _, qd, qdd = self.sample_many(ts)
+        _, sd, sdd = _min_jerk((ts - t0) / T)
+        fraction = 1.0
+        for base, extra, lim in ((qd, np.outer(sd / T, dq), velocity_limits),
+                                 (qdd, np.outer(sdd / T**2, dq), acceleration_limits)):
+            lim = np.asarray(lim, dtype=float)
+            # |base + a extra| <= lim for a in [0, fraction]: the bound where extra pushes base towards a limit
+            with np.errstate(divide="ignore", invalid="ignore"):
+                room = np.where(extra > 0, (lim - base) / extra, np.where(extra < 0, (-lim - base) / extra, np.inf))
+            room = np.where(np.abs(base) > lim, 0.0, room)  # already at a limit there: no room
+            fraction = min(fraction, float(np.min(room)))
+        return max(0.0, fraction)
 
     def sample(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Evaluate at one time ``t`` (s), clamped to [0, duration] and at rest outside.
@@ -176,7 +230,20 @@ class Trajectory:
         moving = (ts >= 0.0) & (ts <= self.duration_s)
         qd[moving] = (d1 * sd[:, None])[moving]
         qdd[moving] = (d2 * sd[:, None] ** 2 + d1 * u[:, None])[moving]
-        return self._spline(s), qd, qdd
+        q = self._spline(s)
+        if self._offset is not None:
+            t0, t1, dq = self._offset
+            T = t1 - t0
+            w, wd, wdd = _min_jerk((ts - t0) / T)
+            q += np.outer(w, dq)
+            qd += np.outer(np.where(moving, wd / T, 0.0), dq)
+            qdd += np.outer(np.where(moving, wdd / T**2, 0.0), dq)
+        return q, qd, qdd
+
+    @property
+    def end(self) -> np.ndarray:
+        """Where the trajectory ends (6,) (rad): its last waypoint, plus its offset if it has one."""
+        return self.sample(self.duration_s)[0]
 
 
 def retime(
@@ -241,10 +308,219 @@ def retime(
                       sd, u)
 
 
+@dataclass(frozen=True, eq=False)
+class PathPart:
+    """One piece of a joint path that :func:`retime_parts` times as one motion with its neighbours.
+
+    Attributes:
+        waypoints: Joint waypoints (N, 6) (rad), N >= 2; the first is the previous part's last. A planned part: a
+            planner's polyline; a straight part: the IK waypoints of a straight tcp move, close together (1 cm).
+        straight: A straight tcp move: the spline passes through every waypoint as given, none added or removed.
+            A planned part is interpolated loosely, through its waypoints only (its straight joint segments are
+            not followed), so that the motion turns into and out of the straight moves without slowing down
+            at the junction; its waypoints are densified only as far as ``is_valid`` requires.
+        is_valid: Check of the spline over this part (configurations (M, 6), every ``check_step_rad``), or None.
+        tcp_speed_m_s: The tcp's speed limit along the part (m/s) (needs ``tcp_rate`` in :func:`retime_parts`);
+            inf: none.
+        reserve: The share of the joints' speed and acceleration limits the part is *not* timed with (0..0.5):
+            room left for a correction made while it runs (:meth:`Trajectory.with_offset`).
+    """
+
+    waypoints: np.ndarray
+    straight: bool = False
+    is_valid: Callable[[np.ndarray], bool] | None = None
+    tcp_speed_m_s: float = math.inf
+    reserve: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "waypoints", _as_path(self.waypoints))
+        if not (self.tcp_speed_m_s > 0.0):
+            raise ConfigError("part.tcp_speed_m_s", self.tcp_speed_m_s, "must be > 0 (m/s)")
+        object.__setattr__(self, "reserve", check_range("part.reserve", self.reserve, 0.0, 0.5))
+
+
+class _ScaledJointAcceleration(tcon.JointAccelerationConstraint):
+    """TOPP-RA's joint acceleration constraint with the limits scaled by ``scale(s)`` (0..1] per gridpoint: the
+    path derivatives are divided by it instead (``|q' u + q'' x| <= scale alim``), which keeps the limits' matrices
+    the same at every gridpoint."""
+
+    def __init__(self, alim: np.ndarray, scale: Callable[[np.ndarray], np.ndarray]) -> None:
+        super().__init__(alim, tcon.DiscretizationType.Interpolation)
+        self.scale = scale
+
+    def compute_constraint_params(self, path: toppra.SplineInterpolator, gridpoints: np.ndarray,
+                                  *args: object, **kwargs: object) -> tuple:
+        k = 1.0 / self.scale(np.asarray(gridpoints))[:, None]
+
+        class _Scaled:  # the path as the constraint sees it: its derivatives over the scale
+            dof = path.dof
+
+            def __call__(self, s: np.ndarray, order: int = 0) -> np.ndarray:
+                return path(s, order) * k if order else path(s, order)
+
+        return super().compute_constraint_params(_Scaled(), gridpoints)
+
+
+class _PathSpeedLimit(tcon.LinearConstraint):
+    """TOPP-RA constraint ``sd <= sd_max(s)``: the path speed bounded per gridpoint (here by the tcp's speed)."""
+
+    def __init__(self, sd_max: Callable[[np.ndarray], np.ndarray]) -> None:
+        super().__init__()
+        self.dof = N_JOINTS
+        self.sd_max = sd_max
+        self._format_string = "    Path speed limit\n"
+
+    def compute_constraint_params(self, path: toppra.SplineInterpolator, gridpoints: np.ndarray) -> tuple:
+        x_max = np.minimum(self.sd_max(np.asarray(gridpoints)) ** 2, _X_UNBOUNDED)
+        xbound = np.column_stack([np.zeros_like(x_max), x_max])
+        return None, None, None, None, None, None, xbound
+
+
+#: Bound on the squared path speed where nothing bounds it (TOPP-RA takes finite bounds).
+_X_UNBOUNDED = 1e12
+
+
+def retime_parts(
+    parts: Sequence[PathPart],
+    config: TimingConfig | None = None,
+    tcp_rate: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+) -> Trajectory:
+    """Time-optimal rest-to-rest time scaling of several path parts as one motion, without stopping between them.
+
+    The knots are the straight parts' waypoints and the planned parts' waypoints; one natural cubic spline
+    through them is C2 everywhere, so where a planned path meets a straight move the motion turns into it
+    instead of stopping at the corner. The planned parts are checked (``is_valid``) and, while the check
+    rejects the spline anywhere, their segments are densified (longest ``0.4, 0.2, ...`` rad, halved each round,
+    :attr:`TimingConfig.max_densify_rounds` + 2 rounds): the spline then hugs their polyline, and corners at the
+    junctions come back.
+
+    Args:
+        parts: The parts in order; each starts where the one before ends.
+        config: Limits and numerical settings; defaults to :meth:`TimingConfig.ur5e`.
+        tcp_rate: The tcp's speed per unit path speed (m/rad), ``|J(q) q'|``, at configurations (M, 6) with
+            path derivatives (M, 6): needed if a part limits the tcp's speed.
+
+    Returns:
+        The trajectory, starting at the first part's start and ending at the last part's end at rest;
+        ``part_times_s`` gives when it passes the start of each part (and its end).
+
+    Raises:
+        ConfigError: no part, parts that do not join, or a tcp speed limit without ``tcp_rate``.
+        TimingFailed: TOPP-RA found no parameterization, or a check still rejects the spline after the last
+            round.
+    """
+    cfg = config if config is not None else TimingConfig()
+    if not parts:
+        raise ConfigError("parts", parts, "must be at least one path part")
+    for i, (a, b) in enumerate(itertools.pairwise(parts)):
+        gap = float(np.max(np.abs(a.waypoints[-1] - b.waypoints[0])))
+        if gap > 1e-6:
+            raise ConfigError(f"parts[{i + 1}].waypoints[0]", gap, "must be the previous part's last waypoint "
+                                                                    "(within 1e-6 rad)")
+    if any(math.isfinite(p.tcp_speed_m_s) for p in parts) and tcp_rate is None:
+        raise ConfigError("tcp_rate", None, "is needed to limit the tcp's speed along a part")
+    raw = np.vstack([parts[0].waypoints[:1], *(p.waypoints[1:] for p in parts)])
+    raw.setflags(write=False)
+    lengths = [math.inf] + [cfg.max_segment_rad * 2.0 ** (2 - r) for r in range(1, cfg.max_densify_rounds + 3)]
+    for rnd, max_len in enumerate(lengths):
+        pieces = [parts[0].waypoints[:1]]
+        for p in parts:
+            pts = p.waypoints if p.straight else _densify(_dedupe(p.waypoints, cfg.min_separation_rad), max_len)
+            pieces.append(pts[1:])
+        knots = np.vstack(pieces)
+        bounds = np.cumsum([0] + [len(x) for x in pieces[1:]])  # knot index where each part ends
+        keep = np.concatenate(([True], np.linalg.norm(np.diff(knots, axis=0), axis=1) > 1e-9))
+        if not keep.all():
+            raise ConfigError("parts", "duplicate waypoints", "a part repeats a waypoint (no motion between two)")
+        ss = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(knots, axis=0), axis=1))))
+        s_parts = ss[bounds]  # (n_parts + 1,): arc length at each part's start, and the end
+        spline = toppra.SplineInterpolator(ss, knots, bc_type="natural")
+        s_chk = np.linspace(0.0, ss[-1], max(2, math.ceil(ss[-1] / cfg.check_step_rad) + 1))
+        q_chk = spline(s_chk)
+        rejected = [i for i, p in enumerate(parts) if p.is_valid is not None and not p.is_valid(
+            q_chk[(s_chk >= s_parts[i] - 1e-12) & (s_chk <= s_parts[i + 1] + 1e-12)])]
+        logger.debug("retime_parts round %d: %d knots, length %.3f rad, parts rejected %s", rnd, len(knots), ss[-1],
+                     rejected)
+        if not rejected:
+            break
+    else:
+        raise TimingFailed(f"the checks still reject parts {rejected} of the spline after densifying the planned "
+                           f"parts to {lengths[-1]:.4g} rad")
+    vmax = np.array([p.tcp_speed_m_s for p in parts])
+    share = 1.0 - np.array([p.reserve for p in parts])
+    vlim = np.array(cfg.velocity_limits_rad_s) * (1.0 - cfg.limit_margin)
+
+    def part_at(s: np.ndarray) -> np.ndarray:
+        return np.clip(np.searchsorted(s_parts, s, side="right") - 1, 0, len(parts) - 1)
+
+    def sd_max(s: np.ndarray) -> np.ndarray:
+        part = part_at(s)
+        out = np.full(s.shape, math.inf)
+        bounded = np.isfinite(vmax[part])
+        if bounded.any():  # the tcp's speed
+            assert tcp_rate is not None
+            rate = tcp_rate(spline(s[bounded]), spline(s[bounded], 1))
+            out[bounded] = vmax[part][bounded] / np.maximum(rate, 1e-9)
+        reserved = share[part] < 1.0
+        if reserved.any():  # the joints' speeds, less the reserve
+            d1 = np.abs(spline(s[reserved], 1))
+            with np.errstate(divide="ignore"):
+                out[reserved] = np.minimum(out[reserved], np.min(share[part][reserved, None] * vlim / d1, axis=1))
+        return out
+
+    extra = [_PathSpeedLimit(sd_max)] if np.isfinite(vmax).any() or (share < 1.0).any() else []
+    scale = (lambda s: share[part_at(s)]) if (share < 1.0).any() else None
+    grid, sd, elapsed, v_ratio, a_ratio = _solve(spline, ss[-1], cfg, extra, scale, breaks=s_parts[1:-1])
+    x = sd**2
+    t = np.concatenate(([0.0], np.cumsum(2.0 * np.diff(grid) / (sd[:-1] + sd[1:]))))
+    if not np.isfinite(t[-1]):
+        raise TimingFailed(f"TOPP-RA stops mid-path (path speed 0 inside the path of {ss[-1]:.3f} rad)")
+    u = np.diff(x) / (2.0 * np.diff(grid))
+    part_times = tuple(float(v) for v in _times_at(s_parts, grid, t, sd, u))
+    polyline = np.stack([np.interp(s_chk, ss, knots[:, j]) for j in range(N_JOINTS)], axis=1)
+    deviation = float(np.max(np.linalg.norm(q_chk - polyline, axis=1)))
+    knots.setflags(write=False)
+    logger.debug("retime_parts: %d parts, duration %.4f s (parts at %s s), TOPP-RA %.1f ms, peak ratios v %.4f "
+                 "a %.4f", len(parts), t[-1], np.round(part_times, 3).tolist(), elapsed * 1e3, v_ratio, a_ratio)
+    return Trajectory(raw, knots, float(t[-1]), deviation, elapsed, v_ratio, a_ratio, rnd, spline, grid, t, sd, u,
+                      part_times)
+
+
+def _times_at(s_query: np.ndarray, grid: np.ndarray, t: np.ndarray, sd: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Times (s) at which a TOPP-RA solution (gridpoints, their times, path speeds, stage accelerations) reaches
+    the arc lengths ``s_query`` (constant path acceleration within each stage)."""
+    out = np.empty(len(s_query))
+    for k, s in enumerate(s_query):
+        i = int(np.clip(np.searchsorted(grid, s, side="right") - 1, 0, len(u) - 1))
+        ds = float(s - grid[i])
+        if ds <= 0.0:
+            out[k] = t[i]
+            continue
+        v0, a = float(sd[i]), float(u[i])
+        # s = v0 dt + a dt^2 / 2: the root reached first (the stable form of the quadratic formula)
+        root = math.sqrt(max(v0 * v0 + 2.0 * a * ds, 0.0))
+        out[k] = t[i] + (2.0 * ds / (v0 + root) if v0 + root > 0.0 else 0.0)
+    out[0], out[-1] = t[0], t[-1]  # the start and the end exactly
+    return np.minimum(out, t[-1])
+
+
+def _min_jerk(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Minimum-jerk profile from 0 to 1 at normalized times ``tau`` (N,) (clipped to [0, 1]): position and its
+    first and second derivatives with respect to ``tau``."""
+    x = np.clip(np.asarray(tau, dtype=float), 0.0, 1.0)
+    return (x**3 * (10.0 - 15.0 * x + 6.0 * x * x), 30.0 * x * x * (1.0 - x) ** 2,
+            60.0 * x * (1.0 - x) * (1.0 - 2.0 * x))
+
+
 def _solve(
-    spline: toppra.SplineInterpolator, length: float, cfg: TimingConfig
+    spline: toppra.SplineInterpolator, length: float, cfg: TimingConfig,
+    extra: Sequence[tcon.LinearConstraint] = (), accel_scale: Callable[[np.ndarray], np.ndarray] | None = None,
+    breaks: np.ndarray | Sequence[float] = (),
 ) -> tuple[np.ndarray, np.ndarray, float, float, float]:
-    """Run TOPP-RA, refining stages that exceed a limit between gridpoints.
+    """Run TOPP-RA, refining stages that exceed a limit between gridpoints (``extra``: more constraints;
+    ``accel_scale(s)``: the share (0..1] of the acceleration limits allowed at ``s``; ``breaks``: arc lengths
+    (rad) that must be gridpoints, where a constraint changes, e.g. where a part with a speed limit starts: a
+    stage that straddles one is bounded only at its ends, by the part before).
 
     Returns:
         Gridpoints (n,) (rad), path speeds (n,) (rad/s), TOPP-RA wall time (s), and the peak
@@ -255,9 +531,17 @@ def _solve(
     shrink = 1.0 - cfg.limit_margin
     constraints = [
         tcon.JointVelocityConstraint(vlim * shrink),
-        tcon.JointAccelerationConstraint(alim * shrink, tcon.DiscretizationType.Interpolation),
+        tcon.JointAccelerationConstraint(alim * shrink, tcon.DiscretizationType.Interpolation)
+        if accel_scale is None else _ScaledJointAcceleration(alim * shrink, accel_scale),
+        *extra,
     ]
     grid = np.linspace(0.0, length, max(50, math.ceil(length / cfg.grid_step_rad) + 1))
+    inner = np.asarray(breaks, dtype=float)
+    inner = inner[(inner > 0.0) & (inner < length)]
+    if inner.size:
+        step = length / (grid.size - 1)
+        far = np.min(np.abs(grid[:, None] - inner[None, :]), axis=1) > 1e-3 * step  # no near-duplicate gridpoints
+        grid = np.unique(np.concatenate([grid[far | (grid == 0.0) | (grid == length)], inner]))
     elapsed = 0.0
     for rnd in range(cfg.max_refine_rounds + 1):
         t0 = time.perf_counter()
@@ -345,7 +629,9 @@ __all__ = [
     "DESIGN_NOTE_VELOCITY_LIMITS_RAD_S",
     "UR5E_ACCELERATION_LIMITS_RAD_S2",
     "UR5E_VELOCITY_LIMITS_RAD_S",
+    "PathPart",
     "TimingConfig",
     "Trajectory",
     "retime",
+    "retime_parts",
 ]

@@ -81,6 +81,8 @@ class IKResult:
         iterations: DLS iterations spent over all attempts.
         attempts: Number of attempts (1 + restarts used).
         status: Why the solver stopped.
+        path: For a straight move (:func:`solve_line`): the configurations it passes through (N, 6) (rad), its
+            start and every waypoint to ``q``; None for a single target.
     """
 
     name: str
@@ -90,6 +92,7 @@ class IKResult:
     iterations: int
     attempts: int
     status: IKStatus
+    path: np.ndarray | None = None
 
     @property
     def success(self) -> bool:
@@ -234,7 +237,8 @@ def solve_line(
         step_m: Waypoint spacing (m).
 
     Returns:
-        The :class:`IKResult` at the end of the move (``iterations`` summed over the waypoints).
+        The :class:`IKResult` at the end of the move (``iterations`` summed over the waypoints), with the
+        waypoints' configurations in ``path`` (``q_start`` first).
 
     Raises:
         UnreachableTarget: a waypoint fails; the message says how far along the move (m) and why.
@@ -248,6 +252,7 @@ def solve_line(
     n = max(1, int(np.ceil(length / step_m - 0.05)))  # steps up to 5% longer than step_m (IK residuals)
     total_it = 0
     e = np.zeros(6)
+    path = [q.copy()]
     for k in range(1, n + 1):
         s = k / n
         T = pin.SE3(T0.rotation @ pin.exp3(s * turn), (1 - s) * T0.translation + s * T_world_target.translation)
@@ -271,5 +276,8 @@ def solve_line(
                       f"({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m", float(np.linalg.norm(e[:3])),
                 float(np.linalg.norm(e[3:])), q=q_new)
         q = q_new
+        path.append(q.copy())
+    waypoints = np.array(path)
+    waypoints.setflags(write=False)
     return IKResult(name, q, float(np.linalg.norm(e[:3])), float(np.linalg.norm(e[3:])), total_it, 1,
-                    IKStatus.CONVERGED)
+                    IKStatus.CONVERGED, waypoints)

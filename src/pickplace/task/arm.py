@@ -6,30 +6,44 @@ compensation and the grip's capacity while something is held, and the tally of t
 saturation per phase. A skill (:mod:`pickplace.task.skill`) says *what* to do; the arm does it and raises
 when a motion fails (:class:`~pickplace.task.phases.PhaseFailed`, or whatever the monitor raises). Several
 skills run one after another on the same arm share its clock and its record.
+
+A motion that does not stop between phases (the approach that runs into the descent, the lift into the
+transport, the transport into the set-down) is one trajectory timed at once (:meth:`Arm.plan_through`,
+:func:`~pickplace.motion.timing.retime_parts`) and run part by part (:meth:`Arm.execute` with ``until``): each
+phase runs its part and checks what it must where the part ends, the arm still moving.
+
+Every physics step of every motion is measured against the UR5e's joint speed, acceleration and torque limits
+(:class:`~pickplace.motion.limits.LimitMeter`, the record's ``limits``), and the straight line the tcp follows
+where a phase asks for it (:meth:`Arm.following`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import logging
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 import pinocchio as pin
 
+from pickplace.errors import TimingFailed, UnreachableTarget
 from pickplace.grasping.grip import TURN_OVER_RAD, GripCapacity, carried_tilt_rad, com_accelerations, slowdown_for_grip
 from pickplace.grasping.targets import LIFT_STEP_M, MAX_RAISE_M
 from pickplace.motion import control
 from pickplace.motion.collision import CollisionChecker, CollisionPolicy
 from pickplace.motion.control import ControlConfig, Payload
+from pickplace.motion.limits import LimitMeter, LineMeter
 from pickplace.motion.loop import ControlLoop
 from pickplace.motion.planning import PlannerConfig, plan, segment_valid
-from pickplace.motion.timing import TimingConfig, Trajectory, retime
+from pickplace.motion.timing import PathPart, TimingConfig, Trajectory, retime, retime_parts
 from pickplace.robot import gripper
-from pickplace.robot.ik import IKResult
+from pickplace.robot.ik import IKResult, solve_line
+from pickplace.robot.kinematics import frame_jacobian, frame_pose
 from pickplace.robot.model import Robot
 from pickplace.task.faults import FaultConfig, FaultInjector
 from pickplace.task.monitor import StepMonitor
@@ -52,6 +66,36 @@ def hand_turn_rad(robot: Robot, traj: Trajectory, dt_s: float = 0.02) -> float:
     qs, _, _ = traj.sample_many(np.arange(0.0, traj.duration_s + dt_s, dt_s))
     return carried_tilt_rad(robot, qs)
 
+
+#: How far the spline of a straight move timed with its neighbours (:meth:`Arm.plan_through`) may stray from the
+#: move's line (m): half the final approach's 1 mm, the rest for tracking.
+LINE_TOLERANCE_M = 0.5e-3
+
+
+@dataclass(frozen=True, eq=False)
+class StraightMove:
+    """A straight tcp move to time together with a planned path (:meth:`Arm.plan_through`).
+
+    Attributes:
+        path: The configurations it passes through (N, 6) (rad), e.g. :attr:`IKResult.path` of
+            :func:`~pickplace.robot.ik.solve_line`: its IK waypoints, 1 cm apart.
+        speed_m_s: The tcp's speed limit along it (m/s).
+        reserve: The share of the joint limits it is not timed with: room for correcting where it ends while it
+            runs (:meth:`Arm.offset_end`).
+    """
+
+    path: np.ndarray
+    speed_m_s: float
+    reserve: float = 0.0
+
+
+#: The share of the joints' acceleration limits kept, beyond the held weight's, by a straight move that starts or
+#: ends with the object on the table (:meth:`Arm.support_reserve`): the contacts' transients at lift-off.
+SUPPORT_MARGIN = 0.03
+
+#: Waypoint spacing (m) of a straight move re-solved to be timed with its neighbours (:meth:`Arm.plan_through`)
+#: where its 1 cm waypoints do not keep the spline on its line.
+REFINED_LINE_STEP_M = 0.0025
 
 #: Steps of the straight line to ``home`` tried for a start within the planner's margin (fraction of the line).
 ESCAPE_STEP = 0.05
@@ -123,16 +167,67 @@ class Arm:
         self.capacity: GripCapacity | None = None
         self.T_tcp_object: pin.SE3 | None = None
         self.held_com_m = np.zeros(3)
-        self.trajectory: Trajectory | None = None
+        self._trajectory: Trajectory | None = None
+        self._straight: tuple[bool, ...] = (False,)  # per part of the trajectory: a straight tcp move
+        self._next_step = 0  # the step of the trajectory its next part starts at
+        self._next_part = 0
         self.segment_checker: CollisionChecker | None = None
         self._traj_t0 = 0.0
         self._tallies: dict[str, control.TrackingTally] = {}
         self._tally_total = control.TrackingTally()
+        self.limits = LimitMeter(robot, timing.velocity_limits_rad_s, timing.acceleration_limits_rad_s2)
+        self.line_meter: LineMeter | None = None
+        shrink = 1.0 - timing.limit_margin
+        #: The joint limits a straight (Cartesian) move keeps: the trajectories' (TOPP-RA's, less its margin).
+        self.line_limits = (np.array(timing.velocity_limits_rad_s) * shrink,
+                            np.array(timing.acceleration_limits_rad_s2) * shrink)
+        self._pdata = robot.pin.createData()
+
+    @property
+    def trajectory(self) -> Trajectory | None:
+        """The trajectory to execute (the last planned or timed one); setting one starts it from its beginning."""
+        return self._trajectory
+
+    @trajectory.setter
+    def trajectory(self, traj: Trajectory | None) -> None:
+        self._trajectory = traj
+        self._straight = (False,)
+        self._next_step = self._next_part = 0
+
+    @property
+    def running(self) -> bool:
+        """Whether the trajectory has been run part of the way (the arm moves on along it)."""
+        return self._trajectory is not None and 0 < self._next_part < len(self._trajectory.part_times_s) - 1
+
+    def step_hook(self, hook: control.Hook, moving: bool = True) -> control.Hook:
+        """``hook`` (the monitor, or a phase's hook that calls it) after measuring the step against the limits, the
+        arm told to move or (``moving`` False) to hold still, and the line being followed (:meth:`following`)."""
+        limits, monitor = self.limits, self.monitor
+
+        def step(d: mujoco.MjData) -> None:
+            limits(d, monitor.phase, moving)
+            if self.line_meter is not None:
+                self.line_meter(d)
+            hook(d)
+
+        return step
+
+    @contextlib.contextmanager
+    def following(self, start_m: np.ndarray, end_m: np.ndarray) -> Iterator[LineMeter]:
+        """Measure how far the tcp strays from the straight line through ``start_m`` and ``end_m`` (3,) (m) in
+        every step run inside the block (the meter's ``max_m``)."""
+        meter = LineMeter(self.robot, start_m, end_m)
+        self.line_meter = meter
+        try:
+            yield meter
+        finally:
+            self.line_meter = None
 
     def finish_tracking(self) -> None:
-        """Write the tracking errors per phase, and over everything, into the record."""
+        """Write the tracking errors per phase, and over everything, and the limits measured, into the record."""
         self.out.tracking = {phase: tally.result() for phase, tally in self._tallies.items()}
         self.out.tracking_total = self._tally_total.result()
+        self.out.limits = self.limits.report()
 
     @property
     def q(self) -> np.ndarray:
@@ -156,16 +251,18 @@ class Arm:
         self._tally_total.add(rec)
 
     def hold(self, q: np.ndarray, duration_s: float, comply_along: np.ndarray | None = None) -> control.TrackingRecord:
-        rec = control.hold(self.robot, self.d, q, duration_s, self.ctrl, payload=self.payload, hook=self.monitor,
-                           noise=self.noise, loop=self.loop, comply_along=comply_along)
+        rec = control.hold(self.robot, self.d, q, duration_s, self.ctrl, payload=self.payload,
+                           hook=self.step_hook(self.monitor, moving=False), noise=self.noise, loop=self.loop,
+                           comply_along=comply_along)
         self.count(rec)
         return rec
 
     def stop(self) -> None:
         """Bring the arm to rest at the trajectories' deceleration limits, then hold it for 0.15 s."""
-        rec = control.stop(self.robot, self.d, self.timing.acceleration_limits_rad_s2, self.ctrl,
-                           payload=self.payload, hook=self.monitor, noise=self.noise, loop=self.loop, settle_s=0.15)
+        rec = control.stop(self.robot, self.d, self.line_limits[1], self.ctrl, payload=self.payload,
+                           hook=self.step_hook(self.monitor), noise=self.noise, loop=self.loop, settle_s=0.15)
         self.count(rec)
+        self.trajectory = None
 
     def hold_until(self, q: np.ndarray | None, done: Callable[[], bool], timeout_s: float,
                     min_s: float = 0.0, comply_along: np.ndarray | None = None) -> bool:
@@ -190,47 +287,190 @@ class Arm:
             waited += self.cfg.poll_s
 
     def plan_segment(self, name: str, checker_at: Callable[[float], CollisionChecker], q_goal: np.ndarray) -> None:
-        """Plan with the full clearance margin; accept the timed trajectory with half of it.
+        """Plan a path from here to ``q_goal`` and time it (:meth:`plan_through` with no straight moves)."""
+        self.plan_through(name, checker_at, q_goal)
 
-        The planner keeps ``planning_margin_m`` from the table and obstacles along its straight segments;
-        the TOPP-RA spline deviates from them by up to ~1e-3 rad, so it is checked with half the margin (a
-        path that grazes the full margin everywhere cannot be densified into passing it again).
+    def plan_through(self, name: str, checker_at: Callable[[float], CollisionChecker], q_goal: np.ndarray,
+                     before: StraightMove | None = None, after: StraightMove | None = None) -> bool:
+        """Plan a path to ``q_goal`` and time it, as one motion with the straight moves ``before`` it (the arm is
+        at its start; the path starts where it ends) and ``after`` it (it starts at ``q_goal``), if given.
+
+        Plan with the full clearance margin; accept the timed trajectory with half of it. The planner keeps
+        ``planning_margin_m`` from the table and obstacles along its straight segments; the TOPP-RA spline
+        deviates from them, so it is checked with half the margin (a path that grazes the full margin everywhere
+        cannot be densified into passing it again).
+
+        With straight moves the arm passes from one part to the next without stopping
+        (:func:`~pickplace.motion.timing.retime_parts`): the spline of each straight move stays within
+        :data:`LINE_TOLERANCE_M` of its line and the tcp within its speed limit along it. Carrying, the whole
+        motion is slowed down until the grip holds (:func:`slowdown_for_grip`), the lift and the set-down
+        included. Where the straight moves cannot be timed with the path, the path alone is (then the caller
+        makes the moves): that needs the arm at the path's start, so with a move ``before`` it raises instead.
+
+        Returns:
+            Whether the trajectory includes the straight moves (run it part by part: :meth:`execute`).
+
+        Raises:
+            PlanningFailed: no path (the planner's error).
+            TimingFailed: the motion cannot be timed (with ``before``: also with the straight moves).
         """
         t0 = time.perf_counter()
-        margin = self.cfg.planning_margin_m
-        checker = checker_at(margin)
-        if not checker.is_valid(self.q):  # within the margin of something, not touching it: leave towards home
-            self._leave(checker_at)
-        res = plan(checker, self.q, q_goal, self.robot.arm_lower, self.robot.arm_upper, self.planner)
-        t1 = time.perf_counter()
-        accept = checker_at(margin / 2)
-        traj = retime(np.asarray(res.path), self.timing, accept.all_valid)
-        slowdown = 1.0
-        if self.capacity is not None and self.payload is not None:  # carrying: slow down to what the grip holds
-            assert self.T_tcp_object is not None
-            com = self.T_tcp_object.act(self.held_com_m)
-            accels = com_accelerations(self.robot, traj, com, gripper.finger_travel(self.robot, self.d))
-            slowdown = slowdown_for_grip(accels, self.capacity)
-            if slowdown < TURN_OVER_SLOWDOWN:  # already slower otherwise: no need to look at the hand's turn
-                tilt = hand_turn_rad(self.robot, traj)
-                if tilt > TURN_OVER_RAD:
-                    log.info("%s: the object tilts %.0f deg on the way (the arm changes branch): slowed down %.1f "
-                             "times", name, math.degrees(tilt), TURN_OVER_SLOWDOWN)
-                    slowdown = TURN_OVER_SLOWDOWN
-            if slowdown > 1.0:
-                traj = traj.slowed(slowdown)
-                log.info("%s: slowed down %.2f times so that the grip holds (%.3f s)", name, slowdown,
-                         traj.duration_s)
+        try:
+            margin = self.cfg.planning_margin_m
+            checker = checker_at(margin)
+            if before is None and not checker.is_valid(self.q):  # within the margin of something, not touching
+                self._leave(checker_at)  # it: leave towards home
+            start = self.q if before is None else np.asarray(before.path[-1])
+            res = plan(checker, start, q_goal, self.robot.arm_lower, self.robot.arm_upper, self.planner)
+            t1 = time.perf_counter()
+            accept = checker_at(margin / 2)
+            traj: Trajectory | None = None
+            straight: tuple[bool, ...] = (False,)
+            if before is not None or after is not None:
+                parts = [self._straight_part(before)] if before is not None else []
+                parts.append(PathPart(np.asarray(res.path), is_valid=accept.all_valid))
+                if after is not None:
+                    parts.append(self._straight_part(after))
+                try:
+                    traj = self._time_parts(name, parts, before is not None, after is not None)
+                    straight = tuple(p.straight for p in parts)
+                except TimingFailed as exc:
+                    if before is not None:
+                        raise
+                    log.info("%s: the straight move after it cannot be timed with the path (%s): timed alone", name,
+                             exc)
+            if traj is None:
+                traj = retime(np.asarray(res.path), self.timing, accept.all_valid)
+            traj, slowdown = self._slowed_for_grip(name, traj)
+        finally:
+            self.out.wall_plan_time_s += time.perf_counter() - t0
         self.segment_checker = accept
         t2 = time.perf_counter()
-        self.out.wall_plan_time_s += t2 - t0
         self.out.segments.append(SegmentPlan(name, t1 - t0, t2 - t1, len(res.path_raw), len(res.path), res.cost_rad,
                                              traj.duration_s, res.status.value, slowdown))
         self.trajectory = traj
+        self._straight = straight
         if self.recorder is not None:  # the tcp's path; an approach goes to the pregrasp of the grasp it chose
             self.recorder.add_plan(name, self.monitor.t, traj)
             if name == "approach":
                 self.recorder.add_grasp_choice(self.monitor.t, self.observer.object_pose(), q_goal)
+        return len(straight) > 1
+
+    def _time_parts(self, name: str, parts: list[PathPart], first: bool, last: bool) -> Trajectory:
+        """Time ``parts`` as one motion (:func:`~pickplace.motion.timing.retime_parts`); where that fails, once more
+        with the straight moves (the ``first`` part, the ``last`` one, if they are) re-solved with waypoints every
+        :data:`REFINED_LINE_STEP_M` along their lines: near a singularity (the arm stretched out) the joints turn
+        fast along the line and a spline through waypoints 1 cm apart strays off it between them."""
+        try:
+            return retime_parts(parts, self.timing, self._tcp_rate)
+        except TimingFailed as exc:
+            refined = list(parts)
+            try:
+                for i in ([0] if first else []) + ([len(parts) - 1] if last else []):
+                    refined[i] = dataclasses.replace(parts[i], waypoints=self._refined_line(parts[i].waypoints))
+            except UnreachableTarget as again:
+                raise TimingFailed(f"{exc}; the straight moves cannot be refined: {again}") from exc
+            log.info("%s: %s; timing it again with the straight moves' waypoints every %.1f mm", name, exc,
+                     REFINED_LINE_STEP_M * 1e3)
+            return retime_parts(refined, self.timing, self._tcp_rate)
+
+    def _refined_line(self, path: np.ndarray) -> np.ndarray:
+        """The straight tcp move through the configurations ``path`` (N, 6) (its start and its end as given)
+        re-solved by IK every :data:`REFINED_LINE_STEP_M` (m).
+
+        Raises:
+            UnreachableTarget: a waypoint does not solve on the arm's branch.
+        """
+        end = frame_pose(self.robot.pin, self._pdata, self.robot.pin_q(path[-1]), self.robot.pin_tcp_frame)
+        res = solve_line(self.robot, end, path[0], "refined line", finger_m=gripper.finger_travel(self.robot, self.d),
+                         step_m=REFINED_LINE_STEP_M)
+        assert res.path is not None
+        waypoints = np.array(res.path)
+        waypoints[-1] = path[-1]  # the same pose, solved once: where the next part starts (or the last ended)
+        return waypoints
+
+    def _slowed_for_grip(self, name: str, traj: Trajectory) -> tuple[Trajectory, float]:
+        """The trajectory slowed down so that the grip holds the object it carries (unchanged if it carries
+        nothing), and the factor."""
+        if self.capacity is None or self.payload is None:
+            return traj, 1.0
+        assert self.T_tcp_object is not None
+        com = self.T_tcp_object.act(self.held_com_m)
+        accels = com_accelerations(self.robot, traj, com, gripper.finger_travel(self.robot, self.d))
+        slowdown = slowdown_for_grip(accels, self.capacity)
+        if slowdown < TURN_OVER_SLOWDOWN:  # already slower otherwise: no need to look at the hand's turn
+            tilt = hand_turn_rad(self.robot, traj)
+            if tilt > TURN_OVER_RAD:
+                log.info("%s: the object tilts %.0f deg on the way (the arm changes branch): slowed down %.1f "
+                         "times", name, math.degrees(tilt), TURN_OVER_SLOWDOWN)
+                slowdown = TURN_OVER_SLOWDOWN
+        if slowdown > 1.0:
+            traj = traj.slowed(slowdown)
+            log.info("%s: slowed down %.2f times so that the grip holds (%.3f s)", name, slowdown, traj.duration_s)
+        return traj, slowdown
+
+    def holds_at_speed(self, traj: Trajectory, t_from_s: float) -> bool:
+        """Whether the grip holds the carried object along ``traj`` from ``t_from_s`` (s) on as it is timed (with
+        the capacity as it is now, e.g. after weighing the object)."""
+        if self.capacity is None or self.payload is None:
+            return True
+        assert self.T_tcp_object is not None
+        com = self.T_tcp_object.act(self.held_com_m)
+        accels = com_accelerations(self.robot, traj, com, gripper.finger_travel(self.robot, self.d))
+        ts = np.arange(0.0, traj.duration_s + 0.005, 0.005)[: len(accels)]
+        return slowdown_for_grip(accels[ts >= t_from_s - 1e-9], self.capacity) <= 1.0
+
+    def support_reserve(self, pressed_n: float = 0.0) -> float:
+        """The share of the joints' acceleration limits (0..0.5) that the payload compensation takes while the held
+        object still rests on the table, here: the controller holds up, and accelerates, an object the table still
+        carries (and the pads press onto it with ``pressed_n`` (N), if they do), so the arm accelerates up to
+        ``M^-1 J_com^T F`` harder than its reference until the object is airborne (or once it touches down), with
+        ``F = m (g + a) + pressed_n`` and ``a`` the straight moves' peak tcp acceleration
+        (``ControlConfig.vertical_accel_m_s2``). A lift or a set-down timed at the limits less this share (and the
+        trajectories' own margin) stays within them. The default cube (0.15 kg): its weight alone takes 6 % of the
+        elbow's limit there, and the elbow went 6.4 % past its reference in the lift's first milliseconds (at
+        friction 1.5; 3 % at 1.0). The contacts' transients at lift-off (the table letting go, the pads' patches
+        settling) add to it beyond this model: :data:`SUPPORT_MARGIN` more is kept (a 0.24 kg cube at friction 1.4
+        went 0.5 % past a reserve of the model's share alone, once in the 100 trials of the default campaign)."""
+        if self.payload is None or self.payload.mass_kg <= 0.0:
+            return 0.0
+        robot = self.robot
+        finger = gripper.finger_travel(robot, self.d)
+        arm = control.arm_model(robot, self.payload)
+        M = control.arm_inertia(arm, self.q, finger)
+        J = frame_jacobian(robot.pin, self._pdata, robot.pin_q(self.q, finger), robot.pin_tcp_frame)
+        r = self.tcp_pose().rotation @ np.asarray(self.payload.com_tcp_m)
+        J_com = J[:3] - pin.skew(r) @ J[3:]  # the centre of mass's velocity: v + w x r
+        g = float(-robot.mj.opt.gravity[2])
+        weight = np.array([0.0, 0.0, self.payload.mass_kg * (g + self.ctrl.vertical_accel_m_s2) + max(0.0, pressed_n)])
+        extra = np.linalg.solve(M, J_com.T @ weight)
+        share = float(np.max(np.abs(extra) / np.asarray(self.timing.acceleration_limits_rad_s2)))
+        return min(0.5, share + SUPPORT_MARGIN + self.timing.limit_margin)
+
+    def _tcp_rate(self, qs: np.ndarray, dqs: np.ndarray) -> np.ndarray:
+        """The tcp's speed per unit path speed ``|J_v(q) q'|`` (M,) (m/rad) at configurations (M, 6) with path
+        derivatives (M, 6)."""
+        robot, data = self.robot, self._pdata
+        return np.array([float(np.linalg.norm(frame_jacobian(robot.pin, data, robot.pin_q(q), robot.pin_tcp_frame)[:3]
+                                              @ dq)) for q, dq in zip(qs, dqs, strict=True)])
+
+    def tcp_at(self, q: np.ndarray) -> np.ndarray:
+        """The tcp's position (3,) (m) at the arm configuration ``q`` (6,)."""
+        robot = self.robot
+        return frame_pose(robot.pin, self._pdata, robot.pin_q(q), robot.pin_tcp_frame).translation.copy()
+
+    def _straight_part(self, move: StraightMove) -> PathPart:
+        """A straight move as a part of a path to time: its spline checked against its line."""
+        a, b = self.tcp_at(move.path[0]), self.tcp_at(move.path[-1])
+        u = (b - a) / max(float(np.linalg.norm(b - a)), 1e-12)
+
+        def on_line(qs: np.ndarray) -> bool:
+            off = np.array([self.tcp_at(q) - a for q in qs])
+            side = off - np.outer(off @ u, u)
+            return bool(np.all(np.einsum("ij,ij->i", side, side) <= LINE_TOLERANCE_M**2))
+
+        return PathPart(move.path, straight=True, is_valid=on_line, tcp_speed_m_s=move.speed_m_s,
+                        reserve=move.reserve)
 
     def _leave(self, checker_at: Callable[[float], CollisionChecker]) -> None:
         """Move an arm that is within the planner's margin of something, but touches nothing (a recovery stopped it
@@ -265,13 +505,15 @@ class Arm:
             return self.ctrl
         return dataclasses.replace(self.ctrl, vertical_accel_m_s2=limit)
 
-    def predict(self, t_start: float) -> Callable[[mujoco.MjData, float], None]:
-        """A check of the rest of the running trajectory against the world as the robot sees it now."""
+    def predict(self, t_start: float, until_s: float | None = None) -> Callable[[mujoco.MjData, float], None]:
+        """A check of the rest of the running trajectory (started at ``t_start`` on the clock, up to ``until_s``
+        along it, default its end) against the world as the robot sees it now."""
         traj, checker = self.trajectory, self.segment_checker
         assert traj is not None and checker is not None
+        end = traj.duration_s if until_s is None else until_s
 
         def predictor(_: mujoco.MjData, t: float) -> None:
-            ts = np.arange(t - t_start, traj.duration_s, 0.01)
+            ts = np.arange(t - t_start, end, 0.01)
             if ts.size == 0:
                 return
             checker.set_world(self.observer.world())
@@ -293,24 +535,86 @@ class Arm:
                                  finger_m=gripper.finger_travel(self.robot, self.d))
         return CollisionChecker(self.robot, policy, world=self.observer.world(), T_tcp_object=self.T_tcp_object)
 
-    def execute(self, phase: Phase) -> None:
-        assert self.trajectory is not None
-        t_start = self._traj_t0 = self.monitor.t
-        if self.segment_checker is not None and self.cfg.max_retries > 0:
-            self.monitor.predictor = self.predict(t_start)
+    def execute(self, phase: Phase, until: int | None = None, hook: control.Hook | None = None,
+                settle_s: float | None = None) -> control.TrackingRecord:
+        """Run the trajectory on from where the last call left it: to the start of its part ``until`` (the arm
+        keeps moving; the next call goes on from there), or to its end (None), then hold its end for
+        ``settle_s`` (default ``machine.settle_s``).
+
+        While a planned part runs, the rest of it is checked against the world as it is now (:meth:`predict`);
+        straight parts are not (their lines were checked when the grasp was chosen, as the straight moves are).
+        ``hook`` replaces the monitor (and must call it).
+        """
+        traj = self.trajectory
+        assert traj is not None
+        dt = float(self.robot.mj.opt.timestep)
+        period = 1 if self.loop is None else self.loop.config.steps(dt)[0]
+        k0, part = self._next_step, self._next_part
+        last = len(traj.part_times_s) - 1
+        stop = last if until is None else until
+        if not part < stop <= last:
+            raise ValueError(f"part {stop} is not ahead of the trajectory's part {part} (of {last})")
+        t_start = self.monitor.t
+        if k0 == 0:
+            self._traj_t0 = t_start
+        if stop == last:
+            stop_s, k1 = None, math.ceil(traj.duration_s / dt - 1e-9)
+        else:
+            n = math.ceil(traj.part_times_s[stop] / dt - 1e-9) - k0
+            k1 = k0 + max(period, -(-n // period) * period)
+            stop_s = k1 * dt
+        free = not all(self._straight[part:stop])
+        if free and self.segment_checker is not None and self.cfg.max_retries > 0:
+            self.monitor.predictor = self.predict(self._traj_t0, traj.part_times_s[stop])
         try:
-            rec = control.track(self.robot, self.d, self.trajectory, self.ctrl, payload=self.payload,
-                                hook=self.monitor, settle_s=self.cfg.settle_s, noise=self.noise, loop=self.loop)
+            rec = control.track(self.robot, self.d, traj, self.ctrl, payload=self.payload,
+                                hook=self.step_hook(hook or self.monitor),
+                                settle_s=(self.cfg.settle_s if settle_s is None else settle_s) if stop_s is None
+                                else 0.0, noise=self.noise, loop=self.loop, start_s=k0 * dt, stop_s=stop_s)
         finally:
             self.monitor.predictor = None
+        self._next_step, self._next_part = k1, stop
         self.count(rec)
         if self.recorder is not None:
             self.recorder.add_joint_segment(phase.value, t_start + rec.t, rec.q, rec.q_ref)
-        if rec.final_error_rad > 0.01:  # knocked off its path (a push): give it time to settle at the end
-            settle = self.hold(self.trajectory.waypoints[-1], 0.3)
+        if stop_s is None and rec.final_error_rad > 0.01:  # knocked off its path (a push): let it settle at the end
+            settle = self.hold(traj.end, 0.3)
             if settle.final_error_rad > 0.01:
                 raise PhaseFailed(phase, f"the arm ended {settle.final_error_rad:.4f} rad from the trajectory's "
                                          "end, 0.3 s after it (limit 0.01 rad)")
+        return rec
+
+    @property
+    def parts(self) -> int:
+        """The number of parts of the trajectory (1 unless timed with straight moves)."""
+        return 0 if self.trajectory is None else len(self.trajectory.part_times_s) - 1
+
+    def reference(self) -> np.ndarray:
+        """The trajectory's configuration (6,) (rad) where the arm is along it."""
+        assert self.trajectory is not None
+        return self.trajectory.sample(self.time_in_trajectory())[0]
+
+    def time_in_trajectory(self) -> float:
+        """Where the arm is along the running trajectory (s from its start)."""
+        return self._next_step * float(self.robot.mj.opt.timestep)
+
+    def offset_end(self, dq: np.ndarray) -> float:
+        """Move the end of the running trajectory by ``dq`` (6,) (rad), blended in from where the arm is on it
+        (:meth:`Trajectory.with_offset`), as much of it as its joint limits leave room for.
+
+        Returns:
+            The fraction of ``dq`` applied (0..1).
+        """
+        traj = self.trajectory
+        assert traj is not None
+        t0 = self.time_in_trajectory()
+        dt = float(self.robot.mj.opt.timestep)
+        fraction = min(1.0, traj.offset_headroom(t0, dq, *self.line_limits, dt))
+        if fraction > 0.0:
+            step, part, straight = self._next_step, self._next_part, self._straight
+            self._trajectory = traj.with_offset(t0, fraction * np.asarray(dq))
+            self._next_step, self._next_part, self._straight = step, part, straight
+        return fraction
 
     def vertical(self, phase: Phase, target_z: float, hook: control.Hook | None = None) -> control.CartesianRecord:
         """Move the tcp straight up or down to ``target_z`` (m); ``hook`` replaces the monitor (and must call it)."""
@@ -321,7 +625,8 @@ class Arm:
     def linear(self, phase: Phase, target: np.ndarray, hook: control.Hook | None = None) -> control.CartesianRecord:
         """Move the tcp along a straight line to ``target`` (3,) (m); ``hook`` replaces the monitor."""
         rec = control.move_linear(self.robot, self.d, target, self.motion_config(), payload=self.payload,
-                                  hook=hook or self.monitor, noise=self.noise, loop=self.loop)
+                                  hook=self.step_hook(hook or self.monitor), noise=self.noise, loop=self.loop,
+                                  joint_limits=self.line_limits)
         self.count(rec)
         if not rec.reached:
             raise PhaseFailed(phase, f"the tcp stopped {rec.final_error_m * 1e3:.2f} mm from its target")
@@ -368,10 +673,10 @@ class Arm:
             path = np.vstack([self.q, q_back])
             if float(np.max(np.abs(path[1] - path[0]))) > 1e-6:
                 rec = control.track(self.robot, self.d, retime(path, self.timing), self.ctrl, payload=self.payload,
-                                    hook=self.monitor, settle_s=0.1, noise=self.noise, loop=self.loop)
+                                    hook=self.step_hook(self.monitor), settle_s=0.1, noise=self.noise, loop=self.loop)
                 self.count(rec)
         finally:
             self.monitor.tolerate_contacts = False
 
 
-__all__ = ["Arm"]
+__all__ = ["LINE_TOLERANCE_M", "REFINED_LINE_STEP_M", "SUPPORT_MARGIN", "Arm", "StraightMove"]

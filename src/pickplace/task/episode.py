@@ -309,6 +309,21 @@ class EpisodeResult:
         pose_estimates: ``(phase, what, position_error_m, yaw_error_rad)`` of every estimate of the object's
             pose the robot took (``resting`` or ``in hand``), against the truth (which it never used): zero in
             the ideal profile, the camera's error in the realistic one.
+        limit_violations: Physics steps (1 ms) of the arm's motions (trajectories, straight moves, stops) at which
+            a joint was faster or accelerated harder than the UR5e's limits (``timing.velocity_limits_rad_s``,
+            ``timing.acceleration_limits_rad_s2``), or a motor's torque was at its limit (clipped)
+            (:mod:`pickplace.motion.limits`).
+        joint_speed_ratio_max: Largest ``|qd_j| / vlim_j`` of any joint at any step of a motion.
+        joint_acceleration_ratio_max: Largest ``|qdd_j| / alim_j`` (the change of the joint's velocity over one step).
+        torque_ratio_max: Largest ``|tau_j| / tau_max_j`` of the torques applied.
+        limit_violations_by_phase: ``limit_violations`` by phase (phases with none left out).
+        limit_worst: The step of a motion closest to (or furthest past) a limit: what, which joint, which phase, when.
+        hold_limit_violations: The same, over the steps at which the arm held still (the gripper closing or opening,
+            waits, the hold after DONE): what contacts did to it.
+        hold_limit_worst: The held step closest to (or furthest past) a limit.
+        approach_line_deviation_max_m: Largest distance of the tcp from the straight line from the pregrasp to the
+            grasp while it descends to the grasp (every step of DESCEND's final approach); NaN if none ran.
+        place_line_deviation_max_m: The same for the set-down, from above the goal to the place as aimed.
         config: The full config the episode ran with.
         telemetry: Per-step samples for plots and video (only when asked for; not serialized).
     """
@@ -356,6 +371,16 @@ class EpisodeResult:
     recoveries: tuple[str, ...]
     measured_mass_kg: float
     pose_estimates: tuple[tuple[str, str, float, float], ...]
+    limit_violations: int
+    joint_speed_ratio_max: float
+    joint_acceleration_ratio_max: float
+    torque_ratio_max: float
+    limit_violations_by_phase: dict[str, int]
+    limit_worst: str
+    hold_limit_violations: int
+    hold_limit_worst: str
+    approach_line_deviation_max_m: float
+    place_line_deviation_max_m: float
     config: EpisodeConfig
     telemetry: Telemetry | None = field(default=None, repr=False)
 
@@ -481,6 +506,16 @@ def _result(out: MachineOutcome, config: EpisodeConfig, seed: int, wall: float, 
         recoveries=tuple(out.recoveries),
         measured_mass_kg=out.lift_load_n / 9.81,
         pose_estimates=tuple(out.estimates),
+        limit_violations=out.limits.violations,
+        joint_speed_ratio_max=out.limits.speed_ratio_max,
+        joint_acceleration_ratio_max=out.limits.acceleration_ratio_max,
+        torque_ratio_max=out.limits.torque_ratio_max,
+        limit_violations_by_phase=dict(out.limits.violations_by_phase),
+        limit_worst=out.limits.worst,
+        hold_limit_violations=out.limits.hold_violations,
+        hold_limit_worst=out.limits.hold_worst,
+        approach_line_deviation_max_m=out.approach_line_deviation_max_m,
+        place_line_deviation_max_m=out.place_line_deviation_max_m,
         config=config,
         telemetry=telemetry,
     )

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 from pickplace.errors import PickPlaceError
 from pickplace.motion import control
+from pickplace.motion.limits import LimitReport
 from pickplace.world.config import check_int, check_range
 
 
@@ -198,6 +199,11 @@ class MachineOutcome:
             ``recovered`` (it failed and a recovery followed) or ``failed``. Phases repeat after a recovery.
         estimates: ``(phase, what, position_error_m, yaw_error_rad)`` of every estimate of the object's pose the
             robot took (``resting`` or ``in hand``), against the truth (which the robot never used).
+        limits: Every physics step of the arm against its joint speed, acceleration and torque limits.
+        approach_line_deviation_max_m: Largest distance of the tcp from the straight line of its final approach
+            to the grasp (pregrasp to grasp), over every step of every DESCEND (m); NaN if none ran.
+        place_line_deviation_max_m: The same for the set-down (preplace to place, as aimed), over every
+            DESCEND_PLACE (m); NaN if none ran.
     """
 
     phase: Phase = Phase.IDLE
@@ -231,6 +237,9 @@ class MachineOutcome:
     recoveries: list[str] = field(default_factory=list)
     timeline: list[tuple[str, float, float, str]] = field(default_factory=list)
     estimates: list[tuple[str, str, float, float]] = field(default_factory=list)
+    limits: LimitReport = field(default_factory=LimitReport)
+    approach_line_deviation_max_m: float = math.nan
+    place_line_deviation_max_m: float = math.nan
 
 
 __all__ = ["CollisionPredicted", "MachineConfig", "MachineOutcome", "Phase", "PhaseFailed", "SegmentPlan"]

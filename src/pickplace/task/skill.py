@@ -16,6 +16,15 @@ outcome, and a monitor runs after *every* simulation step of every phase
   the realistic one, :mod:`pickplace.task.observe`); more than ``MachineConfig.slip_tolerance_m``, or a lost
   load, fails the phase.
 
+Where the profile allows it (``ControlConfig.blend_*``, all on in the ideal profile), the arm does not stop
+between phases: the approach runs into the descent (one trajectory through the pregrasp, planned in
+PLAN_APPROACH), the lift into the transport and the transport into the set-down (one trajectory, planned at the
+start of LIFT from the grip as it settled), and the back-off after the release into the way home. Each phase
+still runs its own part of the motion and checks its outcome where its part ends (the arm moving on): LIFT
+that the object came up with the hand and weighs what it should, DESCEND_PLACE re-aims the rest of the set-down
+from the object's pose in the hand as it passes the preplace. Where such a motion cannot be planned or timed,
+or after any recovery, the phases move one after another as before.
+
 The skill decides; its :class:`~pickplace.task.arm.Arm` moves (and keeps the clock and the record), so that a
 task with several objects can run one skill per object on the same arm. The object and its goal are the
 scene's (``robot.scene.object``, ``goal_xy_m``, ``goal_yaw_rad``): grasps and collision checks are computed
@@ -35,7 +44,15 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from pickplace.errors import ConfigError, GraspFailed, PickPlaceError, UnreachableTarget
+from pickplace.errors import (
+    CannotHold,
+    ConfigError,
+    GraspFailed,
+    PickPlaceError,
+    PlanningFailed,
+    TimingFailed,
+    UnreachableTarget,
+)
 from pickplace.grasping.closure import analyze_grasp
 from pickplace.grasping.configurations import GraspConfigurations, candidate_grasps, solve_grasp_configurations
 from pickplace.grasping.grip import grip_capacity
@@ -46,10 +63,10 @@ from pickplace.motion.control import Payload
 from pickplace.motion.timing import retime
 from pickplace.perception.pose import ObjectNotSeen
 from pickplace.robot import gripper
-from pickplace.robot.ik import IKConfig, solve_ik
-from pickplace.robot.kinematics import frame_pose, rot_z
+from pickplace.robot.ik import IKConfig, IKResult, solve_ik, solve_line
+from pickplace.robot.kinematics import rot_z
 from pickplace.robot.model import object_geom_names
-from pickplace.task.arm import Arm
+from pickplace.task.arm import Arm, StraightMove
 from pickplace.task.monitor import UnexpectedContact
 from pickplace.task.observe import SimulatorObserver
 from pickplace.task.phases import MachineOutcome, Phase, PhaseFailed
@@ -66,6 +83,18 @@ LOOK_BACK_OFF_M = 0.04
 #: The farthest point of the open fingers from the tcp's approach axis (m): a re-aim that turns the hand by an
 #: angle moves them by up to this times the angle.
 FINGER_REACH_M = 0.06
+
+#: A lift that runs on into the transport corrects the payload compensation (the object weighs more than 20 % off
+#: what was believed) where the tcp passes the lift height this far off its reference (m): the 1 mm of the straight
+#: moves. The joint loops hold a heavier object lower: 1.9 mm for the default cube 1.5 times heavier, 13 mm for 5
+#: times; a weighing made wrong by an object rocking in soft pads (0.58 kg for 0.15) left it 0.34 mm off.
+PAYLOAD_ERROR_M = 1e-3
+
+#: The share of the joint limits a set-down that the transport runs into is not timed with: the room its re-aim,
+#: made as the tcp passes the preplace, blends in with (a minimum-jerk offset over the set-down's 0.3-0.4 s). 5 % of
+#: the elbow's 8 rad/s^2 moves the end by some 5 mrad there, about 2.5 mm at the tcp; the object settles in the
+#: hand by about 1 mm in transit.
+RE_AIM_RESERVE = 0.05
 
 
 class _SetDown(Exception):
@@ -102,6 +131,11 @@ class PickPlaceSkill:
         self._dropped: list[GraspCandidate] = []  # grasps given up on (no path to them), not tried again
         self._carried_on = False  # a slip in transit was answered by carrying on with the grip as it had become
         self._object_names = frozenset(object_geom_names(arm.robot.scene.object))
+        self.ctrl = arm.ctrl
+        self._through: set[Phase] = set()  # the phases that run on along the running trajectory (not stopping)
+        # a robot that looks at the object (from the hand at the pregrasp, in the hand above the goal) stops there
+        # whatever its motion settings say; one that reads the simulation's truth (the ideal profile) need not
+        self._looks = not isinstance(arm.observer, SimulatorObserver)
 
     def _object_pose(self) -> pin.SE3:
         """Where the robot believes the object is (its observer's estimate)."""
@@ -159,26 +193,42 @@ class PickPlaceSkill:
                  math.degrees(grasp.tilt_rad), grasp.width_m * 1e3, grasp.margin, configs.grasps_tried)
 
     def _plan_approach(self) -> Phase:
+        """Plan the approach to the pregrasp; with ``blend_approach``, timed with the straight descent after it
+        (the grasp's IK waypoints, solved in IDLE) as one motion."""
         assert self.configs is not None
-        self.arm.plan_segment("approach", self.arm.free, self.configs.pregrasp.q)
+        self._through = set()
+        descent = self.configs.grasp.path
+        after = StraightMove(descent, self.ctrl.vertical_speed_m_s) if (
+            self.ctrl.blend_approach and not self._looks and descent is not None and len(descent) >= 2) else None
+        if self.arm.plan_through("approach", self.arm.free, self.configs.pregrasp.q, after=after):
+            self._through = {Phase.DESCEND}
         return Phase.EXEC_APPROACH
 
     def _exec_approach(self) -> Phase:
-        self.arm.execute(Phase.EXEC_APPROACH)
+        """Run the approach to the pregrasp (on into the descent, without stopping, if they were planned as one)."""
+        self.arm.execute(Phase.EXEC_APPROACH, until=1 if Phase.DESCEND in self._through else None)
         return Phase.DESCEND
 
     def _descend(self) -> Phase:
         """The straight approach from the pregrasp to the grasp (a descent for a top-down grasp), re-aimed at
-        the object as seen against the hand above it (:meth:`_reaim`)."""
+        the object as seen against the hand above it (:meth:`_reaim`); or the rest of the approach planned with
+        it, from the pregrasp on. The gripper closes as soon as the tcp is at the grasp."""
         assert self.configs is not None
         targets = self.configs.targets
-        aim = targets.grasp
-        if self.observer.look_from_hand():
-            self._note_estimate("from the hand")
-            aim = self._reaim()
-            if aim is None:
-                return Phase.PLAN_APPROACH
-        self.arm.linear(Phase.DESCEND, aim.translation)
+        if Phase.DESCEND in self._through:
+            self._through.discard(Phase.DESCEND)
+            with self.arm.following(targets.pregrasp.translation, targets.grasp.translation) as line:
+                self.arm.execute(Phase.DESCEND, settle_s=0.0)  # the pads in place: close at once
+        else:
+            aim = targets.grasp
+            if self.observer.look_from_hand():
+                self._note_estimate("from the hand")
+                aim = self._reaim()
+                if aim is None:
+                    return Phase.PLAN_APPROACH
+            with self.arm.following(self.arm.tcp_pose().translation, aim.translation) as line:
+                self.arm.linear(Phase.DESCEND, aim.translation)
+        self.out.approach_line_deviation_max_m = float(np.fmax(self.out.approach_line_deviation_max_m, line.max_m))
         want = self._grasp_on(self._object_pose()).translation  # where the grasp is, the object as it is
         off = float(np.linalg.norm(self.arm.tcp_pose().translation - want))
         if off > 0.005:
@@ -277,12 +327,19 @@ class PickPlaceSkill:
     def _lift(self) -> Phase:
         """Lift straight up, weighing the object on the way (the pads' force over its acceleration).
 
-        If the arm cannot hold the lift height because the object is heavier (or lighter) than believed, the
-        payload compensation is corrected with the measured mass and the move is repeated once.
+        With ``blend_lift``, the lift, the transport and (``blend_set_down``) the set-down are planned first as one
+        motion (:meth:`_plan_carry`) and the lift is its first part: the checks below are made at the lift
+        height, the arm moving on.
+
+        If the object is heavier (or lighter) than believed by more than 20 %, the payload compensation is
+        corrected with the measured mass (a recovery): a Cartesian lift that could not hold its height is
+        repeated once; a lift that runs on into the transport goes on with the corrected payload if the grip still
+        holds the rest of the motion at its speed, and otherwise stops there and plans the transport anew.
         """
         assert self.configs is not None and self.arm.payload is not None
-        target_z = float(self.configs.targets.lift.translation[2])
+        through = blended = self.ctrl.blend_lift and self._plan_carry()
         z_object0 = float(self._object_pose().translation[2])
+        z_tcp0 = float(self.arm.tcp_pose().translation[2])
         self.monitor.allow_object_table = True  # until it leaves the table
         forces: list[float] = []
         f_z: list[float] = []
@@ -304,43 +361,77 @@ class PickPlaceSkill:
         def measured_mass() -> float:
             return float(np.sum(f_z) / np.sum(g_plus_a)) if f_z else math.nan
 
-        try:
-            rec = control.move_vertical(self.robot, self.d, target_z, self.arm.motion_config(),
-                                        payload=self.arm.payload, hook=hook, noise=self.arm.noise, loop=self.arm.loop,
-                                        raise_on_timeout=False)
-        finally:  # a slip aborts the move: still report what the pads felt
-            mass = measured_mass()
-            self.out.lift_load_n = mass * g if math.isfinite(mass) else 0.0
-        self.arm.count(rec)
-        if (not rec.reached and math.isfinite(mass) and abs(mass / self.arm.payload.mass_kg - 1.0) > 0.2
-                and self.budget.used < self.budget.max_retries):
+        if through:
+            try:
+                self.arm.execute(Phase.LIFT, until=1, hook=hook)
+            finally:  # a slip aborts the move: still report what the pads felt
+                mass = measured_mass()
+                self.out.lift_load_n = mass * g if math.isfinite(mass) else 0.0
+            height_error = float(self.arm.tcp_pose().translation[2]) - float(self.arm.tcp_at(self.arm.reference())[2])
+            reached = True
+        else:
+            target_z = float(self.configs.targets.lift.translation[2])
+
+            def lift() -> control.CartesianRecord:
+                rec = control.move_vertical(self.robot, self.d, target_z, self.arm.motion_config(),
+                                            payload=self.arm.payload, hook=self.arm.step_hook(hook),
+                                            noise=self.arm.noise, loop=self.arm.loop, raise_on_timeout=False,
+                                            joint_limits=self.arm.line_limits)
+                self.arm.count(rec)
+                return rec
+
+            try:
+                rec = lift()
+            finally:  # a slip aborts the move: still report what the pads felt
+                mass = measured_mass()
+                self.out.lift_load_n = mass * g if math.isfinite(mass) else 0.0
+            height_error, reached = rec.final_height_error_m, rec.reached
+        # the payload compensation is corrected where the object weighs 20 % off and the arm could not follow its
+        # reference for it: a Cartesian lift stopped short; a lift that runs on was more than PAYLOAD_ERROR_M off
+        off = math.isfinite(mass) and abs(mass / self.arm.payload.mass_kg - 1.0) > 0.2 and (
+            not reached or (through and abs(height_error) > PAYLOAD_ERROR_M))
+        if off and self.budget.used < self.budget.max_retries:
             self.budget.used += 1
             note = (f"LIFT: the {self.robot.scene.object.name} weighs {mass:.3f} kg, not "
-                    f"{self.arm.payload.mass_kg:.3f} kg (the arm stopped "
-                    f"{rec.final_height_error_m * 1e3:.2f} mm short) -> payload compensation corrected")
+                    f"{self.arm.payload.mass_kg:.3f} kg (the tcp " + (
+                        f"stopped {abs(height_error) * 1e3:.2f} mm short of the lift height" if not through else
+                        f"was {abs(height_error) * 1e3:.2f} mm off its reference at the lift height") +
+                    ") -> payload compensation corrected")
             self.out.recoveries.append(note)
             log.info("recovery: %s", note)
             self.arm.payload = dataclasses.replace(self.arm.payload, mass_kg=mass)
             self.arm.capacity = dataclasses.replace(self.arm.capacity, mass_kg=mass) if self.arm.capacity else None
-            rec = control.move_vertical(self.robot, self.d, target_z, self.arm.motion_config(),
-                                        payload=self.arm.payload, hook=hook, noise=self.arm.noise, loop=self.arm.loop,
-                                        raise_on_timeout=False)
-            self.arm.count(rec)
-            mass = measured_mass()
+            if not through:
+                rec = lift()
+                mass = measured_mass()
+                height_error, reached = rec.final_height_error_m, rec.reached
+            off = False
+            if through and not self.arm.holds_at_speed(self.arm.trajectory, self.arm.time_in_trajectory()):
+                log.info("LIFT: the grip does not hold the %.3f kg %s at the planned speed: stopping to plan the "
+                         "transport again", mass, self.robot.scene.object.name)
+                self.arm.stop()
+                through = False
+                self._through = set()
         self.out.lift_grip_force_n = float(np.mean(forces)) if forces else 0.0
         self.out.lift_load_n = mass * g if math.isfinite(mass) else 0.0
-        if not rec.reached:
-            raise PhaseFailed(Phase.LIFT, f"the tcp stopped {rec.final_height_error_m * 1e3:.2f} mm from the lift "
-                                          f"height (the {self.robot.scene.object.name} weighed {mass:.3f} kg)")
+        name = self.robot.scene.object.name
+        if not reached:
+            raise PhaseFailed(Phase.LIFT, f"the tcp stopped {abs(height_error) * 1e3:.2f} mm from the lift height "
+                                          f"(the {name} weighed {mass:.3f} kg)")
+        if through and off:  # the payload compensation is that far off for the rest of the motion
+            side = "below" if height_error < 0.0 else "above"
+            raise PhaseFailed(Phase.LIFT, f"the tcp was {abs(height_error) * 1e3:.2f} mm {side} its reference at the "
+                                          f"lift height (the {name} weighed {mass:.3f} kg, not the "
+                                          f"{self.arm.payload.mass_kg:.3f} kg its payload compensation holds)")
         came_up = not self.monitor.allow_object_table
         self.monitor.allow_object_table = False
         rise = float(self._object_pose().translation[2]) - z_object0
-        lifted = target_z - float(self.configs.targets.grasp.translation[2])
+        lifted = float(self.arm.tcp_pose().translation[2]) - z_tcp0 if blended else \
+            target_z - float(self.configs.targets.grasp.translation[2])
         if abs(rise - lifted) > self.cfg.slip_tolerance_m:
-            raise GraspFailed(f"the {self.robot.scene.object.name} rose {rise * 1e3:.1f} mm while the tcp rose "
-                              f"{lifted * 1e3:.1f} mm")
+            raise GraspFailed(f"the {name} rose {rise * 1e3:.1f} mm while the tcp rose {lifted * 1e3:.1f} mm")
         if not came_up:  # (a sensor that sees the object itself has said so above)
-            raise GraspFailed(f"the {self.robot.scene.object.name} did not come up with the hand: it weighed "
+            raise GraspFailed(f"the {name} did not come up with the hand: it weighed "
                               f"{mass:.3f} kg of its {self.arm.payload.mass_kg:.3f} kg")
         weighed = self.observer.payload_mass_kg(self.arm.payload.mass_kg, mass)  # a robot's payload: as weighed
         if weighed != self.arm.payload.mass_kg:
@@ -348,55 +439,118 @@ class PickPlaceSkill:
             self.arm.payload = dataclasses.replace(self.arm.payload, mass_kg=weighed)
         self.observer.expect_load(self.arm.payload.mass_kg)  # airborne: the hand carries its weight from now on
         self.arm.T_tcp_object = self.arm.tcp_pose().actInv(self._object_pose())  # as it sits in the hand
-        self.arm.rise_until_clear(Phase.LIFT, lambda margin: self.arm.carrying(margin, False))
+        if not through:
+            self.arm.rise_until_clear(Phase.LIFT, lambda margin: self.arm.carrying(margin, False))
         return Phase.PLAN_TRANSPORT
 
-    def _plan_transport(self) -> Phase:
-        """Re-target the place from the object's measured pose in the hand, then plan to above the goal."""
-        assert self.configs is not None
+    def _plan_carry(self) -> bool:
+        """Plan the lift, the transport and (``blend_set_down``) the set-down as one motion, before the lift, from
+        the grip as it settled: the lift straight up from where the tcp is (its IK waypoints), a path from the lift
+        height to the preplace, the set-down to the place that puts the object, as it sits in the hand, at the
+        goal. Returns whether it did; if not (the lift height is not clear of everything by the planner's margin
+        with the object as it sits, or no path, no timing, no grip at speed), nothing was planned or moved and the
+        phases lift, plan the transport and set down one after another."""
+        assert self.configs is not None and self.arm.T_tcp_object is not None
+        arm, robot, targets = self.arm, self.robot, self.configs.targets
         t0 = time.perf_counter()
-        tcp, obj = self.arm.tcp_pose(), self._object_pose()
-        self.arm.T_tcp_object = tcp.actInv(obj)
-        preplace, place = place_targets(self.robot.scene, tcp, obj, self.configs.targets.R_world_object_goal,
-                                        self.configs.targets.preplace_height_m,
-                                        R_world_tcp_planned=self.configs.targets.place.rotation)
-        finger = gripper.finger_travel(self.robot, self.d)
+        try:
+            tcp = arm.tcp_pose()
+            finger = gripper.finger_travel(robot, self.d)
+            top = pin.SE3(tcp.rotation, np.array([*tcp.translation[:2], float(targets.lift.translation[2])]))
+            lift = solve_line(robot, top, arm.q, "lift", self.ik, finger_m=finger)
+            if not arm.carrying(self.cfg.planning_margin_m, False).is_valid(lift.q):
+                log.info("LIFT: the lift height is within the planner's margin of something with the %s as it sits: "
+                         "lifting on its own", robot.scene.object.name)
+                return False
+            pre, down = self._place_configurations(top, top * arm.T_tcp_object, finger)
+        except UnreachableTarget as exc:
+            log.info("LIFT: no lift and place for one motion (%s): lifting on its own", exc)
+            return False
+        finally:
+            self.out.wall_plan_time_s += time.perf_counter() - t0
+        speed = self.ctrl.vertical_speed_m_s
+        assert lift.path is not None
+        # the table holds the object's weight (and what the pads press it down with) at the lift's start, the
+        # weight at the set-down's end
+        support = arm.support_reserve(-self.observer.load_sample()[1])
+        after = StraightMove(down.path, speed, min(0.5, RE_AIM_RESERVE + arm.support_reserve())) \
+            if down.path is not None else None
+        try:
+            arm.plan_through("transport", lambda margin: arm.carrying(margin, False), pre.q,
+                             before=StraightMove(lift.path, speed, support), after=after)
+        except (PlanningFailed, TimingFailed, CannotHold) as exc:
+            log.info("LIFT: the lift and the transport cannot be one motion (%s): one after the other", exc)
+            return False
+        self._through = {Phase.EXEC_TRANSPORT} | ({Phase.DESCEND_PLACE} if after is not None else set())
+        return True
+
+    def _place_configurations(self, T_world_tcp: pin.SE3, T_world_object: pin.SE3,
+                              finger: float) -> tuple[IKResult, IKResult]:
+        """The preplace and the place of the object held as it is at ``T_world_object`` by the tcp at
+        ``T_world_tcp`` (re-targeted from that grip), solved: the preplace clear of everything by the planner's
+        margin (it ends a planned path), the place touching nothing but the table with the object. With
+        ``blend_set_down`` the place is the end of the straight set-down from the preplace, followed waypoint by
+        waypoint (its ``path``: the set-down can be timed with the transport); where that cannot be followed, it
+        is solved alone and ``path`` is None.
+
+        Raises:
+            UnreachableTarget: either cannot be solved.
+        """
+        assert self.configs is not None
+        targets = self.configs.targets
+        preplace, place = place_targets(self.robot.scene, T_world_tcp, T_world_object, targets.R_world_object_goal,
+                                        targets.preplace_height_m, R_world_tcp_planned=targets.place.rotation)
         carry_ik = self.arm.carrying(self.cfg.planning_margin_m, False)  # the planner accepts it as a goal
         place_ik = self.arm.carrying(0.0, True)
         pre = solve_ik(self.robot, preplace, self.configs.preplace.q, "preplace", self.ik, carry_ik.is_valid, finger)
-        low = solve_ik(self.robot, place, pre.q, "place", self.ik, place_ik.is_valid, finger)
+        low: IKResult | None = None
+        if self.ctrl.blend_set_down and not self._looks:
+            try:
+                low = solve_line(self.robot, place, pre.q, "place", self.ik, place_ik.is_valid, finger)
+            except UnreachableTarget as exc:
+                log.info("the set-down cannot be followed waypoint by waypoint (%s): it will be a move of its own", exc)
+        if low is None:
+            low = dataclasses.replace(solve_ik(self.robot, place, pre.q, "place", self.ik, place_ik.is_valid, finger),
+                                      path=None)
         self.arm.note_ik(pre, low)
-        self.out.wall_plan_time_s += time.perf_counter() - t0
-        self.arm.plan_segment("transport", lambda margin: self.arm.carrying(margin, False), pre.q)
+        return pre, low
+
+    def _plan_transport(self) -> Phase:
+        """Re-target the place from the object's measured pose in the hand, then plan to above the goal (with
+        ``blend_set_down``, timed with the set-down as one motion). Nothing to do if the lift planned it."""
+        assert self.configs is not None
+        if Phase.EXEC_TRANSPORT in self._through:
+            return Phase.EXEC_TRANSPORT  # planned with the lift, from the grip as it settled
+        t0 = time.perf_counter()
+        tcp, obj = self.arm.tcp_pose(), self._object_pose()
+        self.arm.T_tcp_object = tcp.actInv(obj)
+        try:
+            pre, low = self._place_configurations(tcp, obj, gripper.finger_travel(self.robot, self.d))
+        finally:
+            self.out.wall_plan_time_s += time.perf_counter() - t0
+        reserve = min(0.5, RE_AIM_RESERVE + self.arm.support_reserve())  # the re-aim's room, the table's support
+        after = StraightMove(low.path, self.ctrl.vertical_speed_m_s, reserve) if low.path is not None else None
+        if self.arm.plan_through("transport", lambda margin: self.arm.carrying(margin, False), pre.q, after=after):
+            self._through = {Phase.DESCEND_PLACE}
         return Phase.EXEC_TRANSPORT
 
     def _exec_transport(self) -> Phase:
-        assert self.arm.trajectory is not None
+        """Run the transport to the preplace (on into the set-down, without stopping, if they were planned as
+        one)."""
+        traj = self.arm.trajectory
+        assert traj is not None
+        self._through.discard(Phase.EXEC_TRANSPORT)
+        until = self.arm.parts - 1 if Phase.DESCEND_PLACE in self._through else None
         if self.faults.intruder and not self.injector.intruder_placed:  # it appears once the path is planned
-            T_end = frame_pose(self.robot.pin, self.robot.pin.createData(),
-                               self.robot.pin_q(self.arm.trajectory.waypoints[-1]), self.robot.pin_tcp_frame)
-            self.injector.place_intruder(self.d, self.arm.tcp_pose().translation, T_end.translation)
-        self.arm.execute(Phase.EXEC_TRANSPORT)
+            q_end = traj.sample(traj.part_times_s[until])[0] if until is not None else traj.end
+            self.injector.place_intruder(self.d, self.arm.tcp_pose().translation, self.arm.tcp_at(q_end))
+        self.arm.execute(Phase.EXEC_TRANSPORT, until=until)
         return Phase.DESCEND_PLACE
 
-    def _descend_place(self) -> Phase:
-        """Re-aim from the object's pose in the hand *now* (it shifts a little in transit), then set it down."""
+    def _set_down_hook(self) -> control.Hook:
+        """The monitor for a set-down: the object may touch the table once it is within 3 mm of resting on it,
+        which then takes its weight; the set-down ends (:class:`_SetDown`) when the table carries it."""
         assert self.configs is not None
-        t0 = time.perf_counter()
-        self.observer.look_in_hand()
-        self._note_estimate("in hand")
-        tcp, obj = self.arm.tcp_pose(), self._object_pose()
-        preplace, place = place_targets(self.robot.scene, tcp, obj, self.configs.targets.R_world_object_goal,
-                                        self.configs.targets.preplace_height_m,
-                                        R_world_tcp_planned=self.configs.targets.place.rotation)
-        finger = gripper.finger_travel(self.robot, self.d)
-        aim = solve_ik(self.robot, preplace, self.arm.q, "preplace", self.ik, finger_m=finger)
-        self.arm.note_ik(aim)
-        self.out.wall_plan_time_s += time.perf_counter() - t0
-        if float(np.max(np.abs(aim.q - self.arm.q))) > 1e-5:
-            self.arm.trajectory = retime(np.vstack([self.arm.q, aim.q]), self.timing)
-            self.arm.segment_checker = None  # a sub-millimetre correction: nothing to predict
-            self.arm.execute(Phase.DESCEND_PLACE)
         monitor, observer = self.monitor, self.observer
         z_table_touch = float(self.robot.scene.goal_resting_m(self.configs.targets.R_world_object_goal)[2]) + 0.003
         mass_kg = self.arm.payload.mass_kg if self.arm.payload is not None else 0.0
@@ -409,11 +563,61 @@ class PickPlaceSkill:
             if monitor.allow_object_table and observer.touched_down(mass_kg):
                 raise _SetDown  # the table carries it: no need to go further
 
-        try:
-            self.arm.vertical(Phase.DESCEND_PLACE, float(place.translation[2]), hook)
-        except _SetDown:
-            log.debug("set down at t = %.3f s, the tcp %.2f mm above its target", monitor.t,
-                      (float(self.arm.tcp_pose().translation[2]) - float(place.translation[2])) * 1e3)
+        return hook
+
+    def _descend_place(self) -> Phase:
+        """Re-aim from the object's pose in the hand *now* (it shifts a little in transit), then set it down.
+
+        If the transport runs on into the set-down, the re-aim is made as the tcp passes the preplace: the rest of
+        the set-down is bent to end at the re-aimed place (blended in by a minimum-jerk offset, within the joint
+        limits' room: :meth:`Arm.offset_end`). Otherwise the arm, at rest above the goal, moves to the re-aimed
+        preplace and goes straight down (a guarded Cartesian move). Either way the set-down ends as soon as the
+        table carries the object.
+        """
+        assert self.configs is not None
+        t0 = time.perf_counter()
+        self.observer.look_in_hand()
+        self._note_estimate("in hand")
+        tcp, obj = self.arm.tcp_pose(), self._object_pose()
+        preplace, place = place_targets(self.robot.scene, tcp, obj, self.configs.targets.R_world_object_goal,
+                                        self.configs.targets.preplace_height_m,
+                                        R_world_tcp_planned=self.configs.targets.place.rotation)
+        finger = gripper.finger_travel(self.robot, self.d)
+        if Phase.DESCEND_PLACE in self._through:
+            self._through.discard(Phase.DESCEND_PLACE)
+            traj = self.arm.trajectory
+            assert traj is not None
+            planned = traj.end
+            aim = solve_ik(self.robot, place, planned, "place", self.ik, finger_m=finger)
+            self.arm.note_ik(aim)
+            fraction = self.arm.offset_end(aim.q - planned)
+            if fraction < 1.0:
+                log.info("DESCEND_PLACE: the set-down is re-aimed %.0f %% of the way (the joint limits' room)",
+                         fraction * 100)
+            self.out.wall_plan_time_s += time.perf_counter() - t0
+            start, end = tcp.translation, self.arm.tcp_at(self.arm.trajectory.end)
+
+            def move(hook: control.Hook) -> None:
+                self.arm.execute(Phase.DESCEND_PLACE, hook=hook)
+        else:
+            aim = solve_ik(self.robot, preplace, self.arm.q, "preplace", self.ik, finger_m=finger)
+            self.arm.note_ik(aim)
+            self.out.wall_plan_time_s += time.perf_counter() - t0
+            if float(np.max(np.abs(aim.q - self.arm.q))) > 1e-5:
+                self.arm.trajectory = retime(np.vstack([self.arm.q, aim.q]), self.timing)
+                self.arm.segment_checker = None  # a sub-millimetre correction: nothing to predict
+                self.arm.execute(Phase.DESCEND_PLACE)
+            start, end = self.arm.tcp_pose().translation, place.translation
+
+            def move(hook: control.Hook) -> None:
+                self.arm.vertical(Phase.DESCEND_PLACE, float(place.translation[2]), hook)
+        with self.arm.following(start, end) as line:
+            try:
+                move(self._set_down_hook())
+            except _SetDown:
+                log.debug("set down at t = %.3f s, the tcp %.2f mm above its target", self.monitor.t,
+                          (float(self.arm.tcp_pose().translation[2]) - float(end[2])) * 1e3)
+        self.out.place_line_deviation_max_m = float(np.fmax(self.out.place_line_deviation_max_m, line.max_m))
         return Phase.RELEASE
 
     def _release(self) -> Phase:
@@ -499,9 +703,13 @@ class PickPlaceSkill:
 
     def _retract(self) -> Phase:
         """Back off from the object along the approach, rise if the plan said so (or if the hand is still
-        within the planner's margin of something), and go home."""
+        within the planner's margin of something), and go home; with ``blend_retract``, the back-off and the way
+        home are one motion where the back-off ends clear of everything."""
         assert self.configs is not None
         back = self.cfg.retract_height_m - self._backed_off_m  # less what the place check backed off already
+        if self.ctrl.blend_retract and self._plan_retract(back):
+            self.arm.execute(Phase.RETRACT)
+            return Phase.DONE
         if back > 0.0:
             self.arm.linear(Phase.RETRACT, backed_off(self.arm.tcp_pose(), back).translation)
         if self.configs.targets.retreat_rise_m > 0.0:
@@ -511,6 +719,33 @@ class PickPlaceSkill:
         self.arm.plan_segment("return", self.arm.free, self.robot.home_q)
         self.arm.execute(Phase.RETRACT)
         return Phase.DONE
+
+    def _plan_retract(self, back_m: float) -> bool:
+        """Plan the back-off by ``back_m`` (m) along the approach (its IK waypoints) and the way home as one
+        motion; False (nothing planned) where the back-off is not all there is to it (none, a rise after it, or it
+        ends within the planner's margin of something) or cannot be planned so."""
+        if back_m <= 0.0 or self.configs is None or self.configs.targets.retreat_rise_m > 0.0:
+            return False
+        arm = self.arm
+        t0 = time.perf_counter()
+        try:
+            away = solve_line(self.robot, backed_off(arm.tcp_pose(), back_m), arm.q, "retreat", self.ik,
+                              finger_m=gripper.finger_travel(self.robot, self.d))
+            clear = arm.free(self.cfg.planning_margin_m).is_valid(away.q)
+        except UnreachableTarget as exc:
+            log.info("RETRACT: the back-off cannot be followed waypoint by waypoint (%s)", exc)
+            return False
+        finally:
+            self.out.wall_plan_time_s += time.perf_counter() - t0
+        if not clear or away.path is None:
+            return False
+        try:
+            arm.plan_through("return", arm.free, self.robot.home_q,
+                             before=StraightMove(away.path, self.ctrl.vertical_speed_m_s))
+        except (PlanningFailed, TimingFailed) as exc:
+            log.info("RETRACT: the back-off and the way home cannot be one motion (%s): one after the other", exc)
+            return False
+        return True
 
     def run(self) -> MachineOutcome:
         """Run the phases to DONE or FAILED; never raises for a failure of the task itself."""
@@ -555,7 +790,9 @@ class PickPlaceSkill:
         self.out.timeline.append((phase.value, t0, self.monitor.t - t0, outcome))
 
     def _recovery(self, phase: Phase, exc: PickPlaceError) -> Phase | None:
-        """The phase to continue with after ``exc`` in ``phase`` (:mod:`pickplace.task.recovery`), or None."""
+        """The phase to continue with after ``exc`` in ``phase`` (:mod:`pickplace.task.recovery`), or None. The
+        motion that was running is given up: the phases after a recovery plan their own."""
+        self._through = set()
         contact = isinstance(exc, UnexpectedContact)
         if contact:
             self.out.unexpected_contacts.extend(p for p in exc.pairs if p not in self.out.unexpected_contacts)
@@ -571,12 +808,18 @@ class PickPlaceSkill:
         if recovery.regrip:
             self._carried_on = True
             self.monitor.start_holding(self.d)  # the grip as it has become: the stop must not trip on it again
-        if recovery.first is FirstMove.STOP:
-            self.arm.stop()  # before planning from where the arm stands
-        elif recovery.first is FirstMove.BACK_OFF:
-            self.arm.back_off()
-        elif recovery.first is FirstMove.PUT_BACK:
-            self._put_back()
+        try:
+            if recovery.first is FirstMove.STOP:
+                self.arm.stop()  # before planning from where the arm stands
+            elif recovery.first is FirstMove.BACK_OFF:
+                self.arm.back_off()
+            elif recovery.first is FirstMove.PUT_BACK:
+                self._put_back()
+        except ConfigError:
+            raise
+        except PickPlaceError as again:  # e.g. the slip goes on while the arm stops: answer that failure instead
+            log.info("recovery: %s failed on the way: %s", recovery.first.value, again)
+            return self._recovery(phase, again)
         self.budget.spend(phase, exc, recovery.action)
         note = f"{phase.value}: {type(exc).__name__}: {exc} -> {recovery.action}"
         self.out.recoveries.append(note)

@@ -174,6 +174,15 @@ class CampaignSummary:
         task_time_per_object_mean_s: The same per object of the task (s).
         failures_by_object: Failed trials per object (its library name): a task's the object whose pick and place
             failed (``"task"`` for a failure between them).
+        limit_violations: Physics steps (1 ms) of the arms' motions at which a joint was over its speed or
+            acceleration limit or a motor's torque at its limit, summed over every episode that measured them
+            (``EpisodeResult.limit_violations``; records written before it count none).
+        trials_over_limits: Trials with at least one such step.
+        joint_limit_ratio_max: The largest ratio of a joint's speed, acceleration or torque to its limit in any
+            motion of any episode (1 or more: at or past a limit); NaN if none measured it.
+        approach_line_deviation_max_m: Largest distance of the tcp from its straight line in a final approach to a
+            grasp, over every episode (m).
+        place_line_deviation_max_m: The same in a set-down (m).
     """
 
     trials: int
@@ -205,6 +214,11 @@ class CampaignSummary:
     task_time_mean_s: float = math.nan
     task_time_per_object_mean_s: float = math.nan
     failures_by_object: dict[str, int] = dataclasses.field(default_factory=dict)
+    limit_violations: int = 0
+    trials_over_limits: int = 0
+    joint_limit_ratio_max: float = math.nan
+    approach_line_deviation_max_m: float = math.nan
+    place_line_deviation_max_m: float = math.nan
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready data (NaN becomes None)."""
@@ -247,6 +261,11 @@ def summarize(records: Sequence[TrialRecord], out_dir: str | Path = "OUT") -> Ca
     tracking = _finite(e.get("tracking_error_max_rad") for e in all_episodes)
     tcp_tracking = _finite(e.get("tcp_tracking_error_max_m") for e in all_episodes)
     wall = _finite(r.result.get("wall_time_s") for r in records)
+    over = [sum(v for v in (e.get("limit_violations") for e in episodes(r)) if isinstance(v, int)) for r in records]
+    ratios = _finite(e.get(k) for e in all_episodes
+                     for k in ("joint_speed_ratio_max", "joint_acceleration_ratio_max", "torque_ratio_max"))
+    approach_line = _finite(e.get("approach_line_deviation_max_m") for e in all_episodes)
+    place_line = _finite(e.get("place_line_deviation_max_m") for e in all_episodes)
 
     failed = sorted((r for r in records if not r.success), key=lambda r: r.trial)
     worker = sum(r.failure_phase == WORKER_PHASE for r in failed)
@@ -304,6 +323,11 @@ def summarize(records: Sequence[TrialRecord], out_dir: str | Path = "OUT") -> Ca
         worker_failure_rate=worker / n if n else math.nan,
         failures=failure_groups,
         failed_trials=failed_trials,
+        limit_violations=sum(over),
+        trials_over_limits=sum(n > 0 for n in over),
+        joint_limit_ratio_max=_stat(ratios, np.max),
+        approach_line_deviation_max_m=_stat(approach_line, np.max),
+        place_line_deviation_max_m=_stat(place_line, np.max),
     )
 
 
