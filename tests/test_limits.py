@@ -91,6 +91,32 @@ def test_the_limit_meter_does_not_difference_across_a_gap_in_time(robot: Robot) 
     assert rep.speed_ratio_max == pytest.approx(0.5)
 
 
+def test_the_limit_meter_reduces_batches_as_it_would_step_by_step(robot: Robot) -> None:
+    """Steps are buffered and reduced in batches: 1,000 random steps across phases, holds, a gap in time and batch
+    boundaries give the same figures as a meter that reduces every step."""
+
+    class EveryStep(LimitMeter):
+        BATCH = 1
+
+    rng = np.random.default_rng(3)
+    d = mujoco.MjData(robot.mj)
+    batched, single = LimitMeter(robot, VLIM, ALIM), EveryStep(robot, VLIM, ALIM)
+    tau_max = np.asarray(robot.torque_limits_nm)
+    qd = np.zeros(6)
+    for k in range(1000):
+        qd = qd + rng.normal(0.0, 0.012, 6) * ALIM  # now and then past the acceleration limit
+        tau = np.where(rng.random(6) < 0.002, tau_max, rng.uniform(-0.5, 0.5, 6) * tau_max)
+        _step(robot, d, np.clip(qd, -1.05 * VLIM, 1.05 * VLIM), tau)
+        if k == 600:
+            d.time += 0.5  # another loop ran in between, unmeasured
+        phase, moving = ("A", True) if k < 300 else ("CLOSE", False) if k < 420 else ("B", True)
+        batched(d, phase, moving)
+        single(d, phase, moving)
+    a, b = batched.report(), single.report()
+    assert a.violations > 0 and a.hold_violations > 0
+    assert a == b
+
+
 def test_the_line_meter_measures_the_distance_from_the_line(robot: Robot) -> None:
     d = mujoco.MjData(robot.mj)
     site = robot.handles.tcp_site

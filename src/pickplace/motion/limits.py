@@ -81,16 +81,24 @@ class LimitMeter:
         acceleration_limits_rad_s2: Joint acceleration limits (6,) (rad/s^2).
     """
 
+    #: Steps buffered before they are reduced (and whenever the phase or ``moving`` changes, and for a report).
+    BATCH = 256
+
     def __init__(self, robot: Robot, velocity_limits_rad_s: np.ndarray | tuple[float, ...],
                  acceleration_limits_rad_s2: np.ndarray | tuple[float, ...]) -> None:
         h = robot.handles
-        self._dof, self._act = np.asarray(h.arm_dof), np.asarray(h.arm_actuators)
+        self._dof, self._act = _index(h.arm_dof), _index(h.arm_actuators)
+        n = len(h.arm_dof)
         self._inv = np.stack([1.0 / np.asarray(velocity_limits_rad_s, dtype=float),
                               1.0 / np.asarray(acceleration_limits_rad_s2, dtype=float),
                               1.0 / np.asarray(robot.torque_limits_nm, dtype=float)])
         self._dt = float(robot.mj.opt.timestep)
-        self._v_prev: np.ndarray | None = None
-        self._t_prev = np.nan
+        # the steps not reduced yet: one row before them (the last step reduced), then up to BATCH rows
+        self._v = np.zeros((self.BATCH + 1, n))
+        self._u = np.zeros((self.BATCH + 1, n))
+        self._t = np.full(self.BATCH + 1, np.nan)
+        self._n = 0
+        self._label: tuple[str, bool] = ("", True)
         self._max = np.zeros((2, 3))  # moving, holding: speed, acceleration, torque
         self._counts = np.zeros(3, dtype=np.int64)  # moving
         self._any = [0, 0]
@@ -100,37 +108,64 @@ class LimitMeter:
 
     def __call__(self, d: mujoco.MjData, phase: str = "", moving: bool = True) -> None:
         """Measure the state ``d`` has after a physics step, in ``phase``, the arm told to move or (``moving``
-        False) to hold still."""
-        v = d.qvel[self._dof]
-        t = float(d.time)
-        ratios = np.zeros((3, v.size))
-        ratios[0] = np.abs(v) * self._inv[0]
-        if self._v_prev is not None and abs(t - self._t_prev - self._dt) < 1e-9:
-            ratios[1] = np.abs(v - self._v_prev) * (self._inv[1] / self._dt)
-        ratios[2] = np.abs(d.ctrl[self._act]) * self._inv[2]
-        self._v_prev, self._t_prev = v.copy(), t
+        False) to hold still (buffered: reduced every :attr:`BATCH` steps, when the phase or ``moving`` changes,
+        and by :meth:`report`)."""
+        if self._n == self.BATCH or (phase, moving) != self._label:
+            self._reduce()
+            self._label = (phase, moving)
+        i = self._n = self._n + 1
+        self._v[i] = d.qvel[self._dof]
+        self._u[i] = d.ctrl[self._act]
+        self._t[i] = d.time
+
+    def _reduce(self) -> None:
+        """Fold the buffered steps into the figures; keep the last as the one before the next."""
+        n = self._n
+        if n == 0:
+            return
+        v, t = self._v[: n + 1], self._t[: n + 1]
+        ratios = np.empty((3, n, v.shape[1]))
+        np.multiply(np.abs(v[1:]), self._inv[0], out=ratios[0])
+        np.multiply(np.abs(np.diff(v, axis=0)), self._inv[1] / self._dt, out=ratios[1])
+        ratios[1][~(np.abs(np.diff(t) - self._dt) < 1e-9)] = 0.0  # no step before it (the first, or after a reset)
+        np.multiply(np.abs(self._u[1 : n + 1]), self._inv[2], out=ratios[2])
+        peak = ratios.max(axis=2)  # (3, n): each step's largest ratio of each kind
+        phase, moving = self._label
         which = 0 if moving else 1
-        self._samples[which] += 1
-        peak = ratios.max(axis=1)
-        np.maximum(self._max[which], peak, out=self._max[which])
-        over = (peak[0] > 1.0, peak[1] > 1.0, peak[2] >= 1.0 - 1e-12)
-        if any(over):
+        self._samples[which] += n
+        np.maximum(self._max[which], peak.max(axis=1), out=self._max[which])
+        over = np.stack([peak[0] > 1.0, peak[1] > 1.0, peak[2] >= 1.0 - 1e-12])
+        any_over = int(over.any(axis=0).sum())
+        if any_over:
             if moving:
-                self._counts += over
-            self._any[which] += 1
-            self._by_phase[which][phase] = self._by_phase[which].get(phase, 0) + 1
-        top = float(peak.max())
+                self._counts += over.sum(axis=1)
+            self._any[which] += any_over
+            self._by_phase[which][phase] = self._by_phase[which].get(phase, 0) + any_over
+        tops = peak.max(axis=0)
+        k = int(np.argmax(tops))
+        top = float(tops[k])
         if top > self._worst[which][0]:
-            kind = int(np.argmax(peak))
-            joint = int(np.argmax(ratios[kind]))
-            self._worst[which] = (top, f"{_KINDS[kind]} of {JOINT_NAMES[joint]} in {phase or '-'} at t = {t:.3f} s: "
-                                       f"{top:.3f} of its limit")
+            kind = int(np.argmax(peak[:, k]))
+            joint = int(np.argmax(ratios[kind, k]))
+            self._worst[which] = (top, f"{_KINDS[kind]} of {JOINT_NAMES[joint]} in {phase or '-'} at "
+                                       f"t = {t[k + 1]:.3f} s: {top:.3f} of its limit")
+        self._v[0], self._u[0], self._t[0] = self._v[n], self._u[n], self._t[n]
+        self._n = 0
 
     def report(self) -> LimitReport:
         """The figures so far."""
+        self._reduce()
         return LimitReport(self._samples[0], *(float(x) for x in self._max[0]), *(int(c) for c in self._counts),
                            self._any[0], dict(self._by_phase[0]), self._worst[0][1], self._samples[1], self._any[1],
                            dict(self._by_phase[1]), self._worst[1][1])
+
+
+def _index(ids: np.ndarray) -> slice | np.ndarray:
+    """A slice for consecutive indices (a view: cheaper to read every step), else the index array."""
+    ids = np.asarray(ids)
+    if ids.size and np.array_equal(ids, np.arange(ids[0], ids[0] + ids.size)):
+        return slice(int(ids[0]), int(ids[0]) + ids.size)
+    return ids
 
 
 class LineMeter:
