@@ -505,15 +505,16 @@ class Arm:
             return self.ctrl
         return dataclasses.replace(self.ctrl, vertical_accel_m_s2=limit)
 
-    def predict(self, t_start: float, until_s: float | None = None) -> Callable[[mujoco.MjData, float], None]:
-        """A check of the rest of the running trajectory (started at ``t_start`` on the clock, up to ``until_s``
-        along it, default its end) against the world as the robot sees it now."""
+    def predict(self, t_start: float, until_s: float | None = None,
+                from_s: float = 0.0) -> Callable[[mujoco.MjData, float], None]:
+        """A check of the rest of the running trajectory (started at ``t_start`` on the clock, from ``from_s`` up to
+        ``until_s`` along it, default its end) against the world as the robot sees it now."""
         traj, checker = self.trajectory, self.segment_checker
         assert traj is not None and checker is not None
         end = traj.duration_s if until_s is None else until_s
 
         def predictor(_: mujoco.MjData, t: float) -> None:
-            ts = np.arange(t - t_start, end, 0.01)
+            ts = np.arange(max(t - t_start, from_s), end, 0.01)
             if ts.size == 0:
                 return
             checker.set_world(self.observer.world())
@@ -563,9 +564,12 @@ class Arm:
             n = math.ceil(traj.part_times_s[stop] / dt - 1e-9) - k0
             k1 = k0 + max(period, -(-n // period) * period)
             stop_s = k1 * dt
-        free = not all(self._straight[part:stop])
-        if free and self.segment_checker is not None and self.cfg.max_retries > 0:
-            self.monitor.predictor = self.predict(self._traj_t0, traj.part_times_s[stop])
+        planned = [i for i, straight in enumerate(self._straight[part:stop], start=part) if not straight]
+        if planned and self.segment_checker is not None and self.cfg.max_retries > 0:
+            # the planned parts only: a straight part (a back-off from an object just let go, in a bin by its wall)
+            # runs closer to things than the planner's margin, on a line checked when it was solved
+            self.monitor.predictor = self.predict(self._traj_t0, traj.part_times_s[stop],
+                                                  from_s=traj.part_times_s[planned[0]])
         try:
             rec = control.track(self.robot, self.d, traj, self.ctrl, payload=self.payload,
                                 hook=self.step_hook(hook or self.monitor),

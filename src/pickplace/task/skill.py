@@ -59,6 +59,7 @@ from pickplace.grasping.grip import grip_capacity
 from pickplace.grasping.synthesis import GraspCandidate
 from pickplace.grasping.targets import CLEARANCE_M, PLACE_DROP_M, backed_off, object_yaw, place_targets, yaw_error
 from pickplace.motion import control
+from pickplace.motion.collision import CollisionChecker, CollisionPolicy
 from pickplace.motion.control import Payload
 from pickplace.motion.timing import retime
 from pickplace.perception.pose import ObjectNotSeen
@@ -95,6 +96,13 @@ PAYLOAD_ERROR_M = 1e-3
 #: the elbow's 8 rad/s^2 moves the end by some 5 mrad there, about 2.5 mm at the tcp; the object settles in the
 #: hand by about 1 mm in transit.
 RE_AIM_RESERVE = 0.05
+
+#: A back-off that runs into the way home as one motion is a spline through its waypoints, within
+#: ``arm.LINE_TOLERANCE_M`` (0.5 mm) of the line and tracked within a few hundredths of a millimetre more; the open
+#: hand must keep this cushion (m) along the whole line from everything but the object it let go of (the table's
+#: top aside, which it rises from), or it backs off by a Cartesian move on the line itself first. A cube let go
+#: between the wall of a bin and another object leaves a finger a fraction of a millimetre from the wall.
+RETRACT_CUSHION_M = 2e-3
 
 
 class _SetDown(Exception):
@@ -738,6 +746,15 @@ class PickPlaceSkill:
         finally:
             self.out.wall_plan_time_s += time.perf_counter() - t0
         if not clear or away.path is None:
+            return False
+        policy = CollisionPolicy(margin_m=RETRACT_CUSHION_M, allow_gripper_object=True, table_margin_m=0.0,
+                                 finger_m=gripper.finger_travel(self.robot, self.d))
+        near = CollisionChecker(self.robot, policy, world=arm.observer.world())
+        k = near.first_invalid(away.path)
+        if k >= 0:
+            log.info("RETRACT: the hand backs off within %.1f mm of %s: on the line itself first",
+                     1e3 * RETRACT_CUSHION_M,
+                     ", ".join(f"{a} <-> {b}" for a, b in near.colliding_pairs(away.path[k])))
             return False
         try:
             arm.plan_through("return", arm.free, self.robot.home_q,
