@@ -41,6 +41,29 @@ _ARM, _GRIPPER, _PAD, _OBJECT, _TABLE, _ENV, _OTHER = range(7)
 _N_CLASSES = 7
 
 
+class _ContactFlag:
+    """A flag of :class:`StepMonitor` that decides which contacts are allowed: setting it to a new value forgets
+    the verdicts found under the old one (the per-step check looks at the contacts again only when they or the
+    flags change). Stored in the instance as ``_<name>``."""
+
+    def __init__(self, doc: str) -> None:
+        self.__doc__ = doc
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self._attr = "_" + name
+
+    def __get__(self, monitor: StepMonitor | None, owner: type | None = None) -> bool:
+        if monitor is None:
+            return self  # type: ignore[return-value]  # the class attribute: the descriptor itself
+        return getattr(monitor, self._attr)
+
+    def __set__(self, monitor: StepMonitor, value: bool) -> None:
+        if getattr(monitor, self._attr) != value:
+            setattr(monitor, self._attr, value)
+            monitor._allowed_table = None
+            monitor._ok_contacts = b""
+
+
 class StepMonitor:
     """The checks run after every simulation step, and the episode clock.
 
@@ -104,50 +127,12 @@ class StepMonitor:
         self._inject = True  # whether the injector has anything to do (set with it)
         self.injector = injector
 
-    # The flags that decide which contacts are allowed: setting one to a new value forgets the contacts found
-    # allowed so far (the per-step check looks at the contacts again only when they or the flags change).
-
-    @property
-    def allow_hand_object(self) -> bool:
-        """Whether the gripper and its pads may touch the object."""
-        return self._allow_hand_object
-
-    @allow_hand_object.setter
-    def allow_hand_object(self, value: bool) -> None:
-        self._set_flag("_allow_hand_object", value)
-
-    @property
-    def object_falling(self) -> bool:
-        """Whether a dropped object is on its way down (it may land on the arm too)."""
-        return self._object_falling
-
-    @object_falling.setter
-    def object_falling(self, value: bool) -> None:
-        self._set_flag("_object_falling", value)
-
-    @property
-    def allow_object_table(self) -> bool:
-        """Whether the object may touch the table while it is held (setting it down)."""
-        return self._allow_object_table
-
-    @allow_object_table.setter
-    def allow_object_table(self, value: bool) -> None:
-        self._set_flag("_allow_object_table", value)
-
-    @property
-    def holding(self) -> bool:
-        """Whether the object is held (slip is checked, and it may touch nothing but the robot's hand)."""
-        return self._holding
-
-    @holding.setter
-    def holding(self, value: bool) -> None:
-        self._set_flag("_holding", value)
-
-    def _set_flag(self, name: str, value: bool) -> None:
-        if getattr(self, name) != value:
-            setattr(self, name, value)
-            self._allowed_table = None
-            self._ok_contacts = b""
+    # The flags that decide which contacts are allowed (see _ContactFlag).
+    allow_hand_object = _ContactFlag("Whether the gripper and its pads may touch the object.")
+    object_falling = _ContactFlag("Whether a dropped object is on its way down (it may land on the arm too).")
+    allow_object_table = _ContactFlag("Whether the object may touch the table while it is held (setting it down).")
+    holding = _ContactFlag("Whether the object is held (slip is checked, and it may touch nothing but the robot's "
+                           "hand).")
 
     @property
     def injector(self) -> FaultInjector | None:
