@@ -10,6 +10,7 @@ import pytest
 from pickplace.errors import CollisionError, ConfigError
 from pickplace.grasping.configurations import GraspConfigurations
 from pickplace.grasping.targets import top_down
+from pickplace.motion import collision
 from pickplace.motion.collision import CollisionChecker, CollisionPolicy
 from pickplace.robot import model
 from pickplace.robot.ik import solve_ik
@@ -145,6 +146,32 @@ def test_one_checker_re_aimed_with_set_held_agrees_with_new_ones(robot: model.Ro
         np.testing.assert_array_equal(reused.are_valid(qs), fresh.are_valid(qs))
         for q in qs[:4]:
             assert reused.colliding_pairs(q) == fresh.colliding_pairs(q)
+
+
+def test_checkers_in_the_same_state_share_a_model_and_re_aiming_one_leaves_the_others_alone(
+        robot: model.Robot, configs: GraspConfigurations) -> None:
+    """Checkers of one scene, policy and held pose share one model; a checker re-aimed (set_held, or set_world
+    bringing a parked body within reach) takes another, and the one it shared with answers as before, as does a
+    checker built from scratch (every cache emptied)."""
+    policy = CollisionPolicy(margin_m=0.01, object_held=True, finger_m=configs.held_finger_m)
+    rel = configs.targets.T_tcp_object
+    a, b = CollisionChecker(robot, policy, T_tcp_object=rel), CollisionChecker(robot, policy, T_tcp_object=rel)
+    assert a._m is b._m
+    qs = robot.home_q + np.random.default_rng(13).normal(0.0, 0.8, (300, 6))
+    before = b.are_valid(qs)
+    assert 0 < before.sum() < len(qs)
+    a.set_held(rel * pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.05])))
+    d = robot.make_data()
+    d.mocap_pos[robot.mj.body(model.INTRUDER).mocapid[0]] = [0.45, 0.0, 0.5]
+    a.set_world(d)
+    assert a._m is not b._m and a.far_bodies == b.far_bodies - 1
+    assert not np.array_equal(a.are_valid(qs), before)
+    np.testing.assert_array_equal(b.are_valid(qs), before)
+    collision._model_family.cache_clear()
+    collision._checker_model.cache_clear()
+    fresh = CollisionChecker(robot, policy, T_tcp_object=rel)
+    assert fresh._m is not b._m
+    np.testing.assert_array_equal(fresh.are_valid(qs), before)
 
 
 def test_policy_validation() -> None:

@@ -12,13 +12,19 @@ The checker's model is the scene compiled with one extra body: a copy of the obj
 ``mj_kinematics`` and one ``mj_collision`` per configuration, with no pose arithmetic in Python, so a check
 with the object in hand costs the same as one without. Bodies out of the arm's reach (obstacles parked far away
 until needed) are switched off, so that MuJoCo's broad phase does not pair them up on every check.
+
+Checkers are cheap to build: the model is compiled once per scene and object, its collision bits are set once per
+policy, and checkers in the same state share one model (never written once shared); a checker makes only its own
+``MjData``.
 """
 
 from __future__ import annotations
 
 import copy
+import dataclasses
 import functools
 import logging
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import mujoco
@@ -78,6 +84,11 @@ class CollisionPolicy:
 class CollisionChecker:
     """Configuration validity for the arm in one scene under one :class:`CollisionPolicy`.
 
+    Building one is cheap (a fraction of a millisecond): the checker's model is compiled once per scene and held
+    object, its collision bits are set once per policy, and checkers in the same state (the same held pose, the
+    same bodies switched off) share one model, which is never written once shared (:class:`_ModelFamily`). Each
+    checker only makes its own ``MjData``.
+
     Args:
         robot: The models.
         policy: What counts as a collision.
@@ -104,113 +115,50 @@ class CollisionChecker:
     ) -> None:
         self.robot = robot
         self.policy = policy or CollisionPolicy()
-        self._m = copy.deepcopy(_checker_model(robot.world_scene, robot.scene.object))
+        family = self._family = _model_family(robot.world_scene, robot.scene, robot.mj.body(
+            robot.handles.object_body).name, dataclasses.replace(self.policy, finger_m=0.0))
+        self._m = family.model
         self._d = mujoco.MjData(self._m)
-        h = self._handles = Handles.resolve(self._m, robot.mj.body(robot.handles.object_body).name)
-        self._held_body = mujoco.mj_name2id(self._m, mujoco.mjtObj.mjOBJ_BODY, HELD_PREFIX + "object")
-        self._robot_bodies = h.robot_bodies | {self._held_body}
-        self._held_geoms = frozenset(int(g) for g in np.flatnonzero(self._m.geom_bodyid == self._held_body))
-        self._arm = slice(int(h.arm_qpos[0]), int(h.arm_qpos[0]) + 6)
-        assert np.array_equal(h.arm_qpos, np.arange(self._arm.start, self._arm.stop)), "arm qpos must be contiguous"
+        self._handles, self._held_body, self._arm = family.handles, family.held_body, family.arm
+        self._contype, self._conaffinity = family.contype, family.conaffinity
         mujoco.mj_resetDataKeyframe(self._m, self._d, 0)
         self._finger_m = self.policy.finger_m
-        self._d.qpos[h.finger_qpos] = self._finger_m
+        self._d.qpos[family.handles.finger_qpos] = self._finger_m
         if world is not None:
-            self.set_world(world)
-        self._weld_held_object(T_tcp_object or pin.SE3.Identity())
+            self._copy_world(world)
         self.checks = 0
         self._cull_far = cull_far
+        self._held_pose = family.held_pose(T_tcp_object or pin.SE3.Identity())
+        self._reach = family.reach(self._held_pose[0])
+        self._far = np.zeros(self._m.nbody, dtype=bool)
         self.far_bodies = 0
-        self._configure_filters()
-        self._prepare_culling()
-        self._cull_far_bodies()
+        self._update_model()
 
     def set_world(self, d: mujoco.MjData) -> None:
         """Take the pose of everything that is not the arm from a simulation state (the object, mocap bodies).
 
         The arm joints in ``d`` are ignored (each check sets them); the fingers keep the policy's opening.
         """
-        h = self._handles
+        self._copy_world(d)
+        self._update_model()
+
+    def _copy_world(self, d: mujoco.MjData) -> None:
         arm = self._d.qpos[self._arm].copy()
         self._d.qpos[:] = d.qpos
         self._d.qpos[self._arm] = arm
-        self._d.qpos[h.finger_qpos] = self._finger_m
+        self._d.qpos[self._handles.finger_qpos] = self._finger_m
         self._d.mocap_pos[:] = d.mocap_pos
         self._d.mocap_quat[:] = d.mocap_quat
-        if hasattr(self, "_far"):  # (set_world in __init__ runs before the filters exist)
-            self._cull_far_bodies()
 
     def set_held(self, T_tcp_object: pin.SE3, finger_m: float | None = None) -> None:
         """Carry the object at ``T_tcp_object`` from now on, the fingers at ``finger_m`` (m of travel) if given:
         one checker serves grasp after grasp (the policy stays as it is)."""
-        self._weld_held_object(T_tcp_object)
         if finger_m is not None:
             self._finger_m = check_range("collision.finger_m", finger_m, 0.0, 0.040, unit="m")
             self._d.qpos[self._handles.finger_qpos] = self._finger_m
-        self._reach = self.reach_m() + float(self._m.geom_margin.max())  # the held object moved
-        self._cull_far_bodies()
-
-    def _weld_held_object(self, T_tcp_object: pin.SE3) -> None:
-        """Pose the held object's body in its parent (the body carrying the tcp site): T_tcp_site * T_tcp_object."""
-        m, tcp = self._m, self._handles.tcp_site
-        R_parent_tcp = np.empty(9)
-        mujoco.mju_quat2Mat(R_parent_tcp, m.site_quat[tcp])
-        R_parent_tcp = R_parent_tcp.reshape(3, 3)
-        quat = np.empty(4)
-        mujoco.mju_mat2Quat(quat, (R_parent_tcp @ T_tcp_object.rotation).ravel())
-        m.body_pos[self._held_body] = m.site_pos[tcp] + R_parent_tcp @ T_tcp_object.translation
-        m.body_quat[self._held_body] = quat
-
-    def _configure_filters(self) -> None:
-        """Encode the policy in the model copy's contype/conaffinity bits and margins.
-
-        Every geom that takes part in collisions gets one class bit as its contype and, as its conaffinity,
-        the bits of the classes it must not touch. MuJoCo then only generates the contacts that count, so a
-        configuration is valid exactly when ``ncon == 0`` (no per-contact filtering in Python).
-        """
-        m, h, policy = self._m, self._handles, self.policy
-        OFF, ARM, GRIP, TABLE, ENV, OBJ = 0, 1, 2, 4, 8, 16
-        table = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "table")
-        cls = np.full(m.ngeom, ENV)
-        cls[np.isin(m.geom_bodyid, list(h.robot_bodies))] = ARM
-        cls[np.isin(m.geom_bodyid, list(h.gripper_bodies))] = GRIP
-        cls[m.geom_bodyid == table] = TABLE
-        # Surfaces objects are set down on count as the table: the bin's floor, and the object the one in hand is
-        # set on (a tower's top). The other objects, the bin's walls and the obstacles are the environment.
-        cls[surface_geoms(m, self.robot.world_scene, self.robot.scene)] = TABLE
-        # Exactly one of the two objects takes part: the one resting in the world, or the one in the gripper.
-        cls[m.geom_bodyid == h.object_body] = OFF if policy.object_held else OBJ
-        cls[m.geom_bodyid == self._held_body] = OBJ if policy.object_held else OFF
-        pairs = {(ARM, ARM), (ARM, GRIP), (ARM, TABLE), (ARM, ENV), (ARM, OBJ), (GRIP, GRIP), (GRIP, TABLE),
-                 (GRIP, ENV)}
-        if not (policy.allow_gripper_object or policy.object_held):
-            pairs.add((GRIP, OBJ))
-        if policy.object_held:
-            pairs.add((OBJ, ENV))
-            if not policy.allow_object_table:
-                pairs.add((OBJ, TABLE))
-        affinity = {c: 0 for c in (OFF, ARM, GRIP, TABLE, ENV, OBJ)}
-        for a, b in pairs:
-            affinity[a] |= b
-            affinity[b] |= a
-        active = (m.geom_contype | m.geom_conaffinity) != 0  # visual geoms stay out
-        m.geom_contype[active] = cls[active]
-        m.geom_conaffinity[active] = [affinity[c] for c in cls[active]]
-        # MuJoCo uses the larger margin of a pair: margins on the environment (and on the carried object) keep
-        # the robot clear of them, while robot self-collision is checked at actual contact (adjacent housings
-        # of the UR5e sit closer than any useful margin).
-        m.geom_margin[:] = 0.0
-        m.geom_margin[cls == ENV] = policy.margin_m
-        m.geom_margin[cls == TABLE] = policy.margin_m if policy.table_margin_m is None else policy.table_margin_m
-        if policy.object_held:
-            m.geom_margin[cls == OBJ] = policy.margin_m
-        # The broad phase works on bodies: it filters body pairs by the OR of their geoms' bits and pads each
-        # body's bounds by its largest geom margin, both computed at compile time, so they are redone here.
-        for b in range(m.nbody):
-            in_body = m.geom_bodyid == b
-            m.body_contype[b] = np.bitwise_or.reduce(m.geom_contype[in_body], initial=0)
-            m.body_conaffinity[b] = np.bitwise_or.reduce(m.geom_conaffinity[in_body], initial=0)
-            m.body_margin[b] = m.geom_margin[in_body].max(initial=0.0)
+        self._held_pose = self._family.held_pose(T_tcp_object)
+        self._reach = self._family.reach(self._held_pose[0])  # the held object moved
+        self._update_model()
 
     def reach_m(self) -> float:
         """Radius (m) of a sphere about the robot's base that holds every colliding robot geom (and the carried
@@ -220,68 +168,32 @@ class CollisionChecker:
         from the base to its body (a slide joint adding its largest travel), plus the geom's offset in its body
         and its bounding radius (the triangle inequality, whatever the joint angles).
         """
-        m = self._m
-        offset = np.linalg.norm(m.body_pos, axis=1) + self._slide_travel
-        chain = np.zeros(m.nbody)
-        for b in self._chain_order:  # the robot's bodies after the base; MuJoCo numbers a body after its parent
-            chain[b] = chain[m.body_parentid[b]] + offset[b]
-        g = self._robot_geoms
-        return float(np.max(chain[m.geom_bodyid[g]] + np.linalg.norm(m.geom_pos[g], axis=1) + m.geom_rbound[g]
-                            + m.geom_margin[g]))
+        return self._family.chain_reach(self._held_pose[0])
 
-    def _prepare_culling(self) -> None:
-        """Remember the policy's collision bits and which geoms could be switched off (see :meth:`_cull_far_bodies`)."""
-        m = self._m
-        self._contype = m.geom_contype.copy()  # the policy's bits, before far bodies are switched off
-        self._conaffinity = m.geom_conaffinity.copy()
-        active = (self._contype | self._conaffinity) != 0
-        body = m.geom_bodyid
-        unbounded = np.unique(body[active & (m.geom_rbound <= 0.0)])  # planes: always on, with their bodies
-        robot = np.array(sorted(self._robot_bodies))
-        candidates = active & ~np.isin(body, robot) & ~np.isin(body, unbounded) & (body > 0)
-        self._cull_geoms = np.flatnonzero(candidates)
-        self._cull_rbound = m.geom_rbound[self._cull_geoms].copy()
-        self._base_body = int(robot.min())
-        self._chain_order = [int(b) for b in robot[1:]]
-        self._robot_geoms = np.flatnonzero(active & np.isin(body, robot))
-        self._slide_travel = np.zeros(m.nbody)
-        for j in np.flatnonzero(m.jnt_type == mujoco.mjtJoint.mjJNT_SLIDE):
-            b = m.jnt_bodyid[j]
-            self._slide_travel[b] = max(self._slide_travel[b], float(np.abs(m.jnt_range[j]).max()))
-        self._reach = self.reach_m() + float(m.geom_margin.max())
-        self._far = np.zeros(m.nbody, dtype=bool)
-
-    def _cull_far_bodies(self) -> None:
+    def _update_model(self) -> None:
         """Switch off the collisions of every body out of the robot's reach (:meth:`reach_m`, plus the largest
-        margin), and back on for those within it.
+        margin), and back on for those within it; then take the shared model for this state (held pose, bodies
+        switched off).
 
         The scene holds bodies parked far away until needed: the intruder and the 64 columns of seen obstacles,
         all parked at one spot, whose overlapping bounds the broad phase would otherwise pair up on every check
         (they made a check 1.6-2.7 times as costly, measured on the obstacle transfer's checker). A body far out
         of reach cannot touch the arm or what it carries, so switching it off changes no answer. Planes (an
-        unbounded ``geom_rbound`` of 0) always stay on. Costs one ``mj_kinematics`` and a few array operations;
-        the model is only written when a body crosses the bound.
+        unbounded ``geom_rbound`` of 0) always stay on. Costs one ``mj_kinematics`` and a few array operations.
         """
-        if not self._cull_far or self._cull_geoms.size == 0:
-            return
-        m, d = self._m, self._d
-        mujoco.mj_kinematics(m, d)  # where everything that is not the arm is (the arm's own pose does not matter)
-        gap = np.linalg.norm(d.geom_xpos[self._cull_geoms] - d.xpos[self._base_body], axis=1) - self._cull_rbound
-        nearest = np.full(m.nbody, np.inf)
-        np.minimum.at(nearest, m.geom_bodyid[self._cull_geoms], gap)
-        far_body = np.isfinite(nearest) & (nearest > self._reach)  # (inf: no geom that may be switched off)
-        if np.array_equal(far_body, self._far):
-            return
-        self._far = far_body
-        far = far_body[m.geom_bodyid]
-        m.geom_contype[:] = np.where(far, 0, self._contype)
-        m.geom_conaffinity[:] = np.where(far, 0, self._conaffinity)
-        # the broad phase filters body pairs by the OR of their geoms' bits
-        for bits, out in ((m.geom_contype, m.body_contype), (m.geom_conaffinity, m.body_conaffinity)):
-            acc = np.zeros(m.nbody, dtype=bits.dtype)
-            np.bitwise_or.at(acc, m.geom_bodyid, bits)
-            out[:] = acc
-        self.far_bodies = int(far_body.sum())
+        family = self._family
+        if self._cull_far and family.cull_geoms.size:
+            m, d = self._m, self._d
+            mujoco.mj_kinematics(m, d)  # where everything that is not the arm is (the arm's pose does not matter)
+            gap = (np.linalg.norm(d.geom_xpos[family.cull_geoms] - d.xpos[family.base_body], axis=1)
+                   - family.cull_rbound)
+            nearest = np.full(m.nbody, np.inf)
+            np.minimum.at(nearest, family.cull_bodies, gap)
+            far = np.isfinite(nearest) & (nearest > self._reach)  # (inf: no geom that may be switched off)
+            if not np.array_equal(far, self._far):
+                self._far = far
+                self.far_bodies = int(far.sum())
+        self._m = family.variant(self._held_pose, self._far)
 
     # ------------------------------------------------------------------ #
     # The loops below repeat _place inline: a check costs a few µs, so the Python around it matters.
@@ -341,13 +253,186 @@ class CollisionChecker:
     def _geom_name(self, g: int) -> str:
         """A geom's name as the user knows it (the carried object's geoms by their own names)."""
         name = self._m.geom(g).name or f"geom{g}"
-        return name.removeprefix(HELD_PREFIX) if g in self._held_geoms else name
+        return name.removeprefix(HELD_PREFIX) if g in self._family.held_geoms else name
 
     def require_valid(self, q: np.ndarray, what: str) -> None:
         """Raise :class:`CollisionError` naming the geoms if ``q`` is in collision."""
         pairs = self.colliding_pairs(q)
         if pairs:
             raise CollisionError(what, pairs)
+
+
+class _ModelFamily:
+    """The checker models of one scene, object and policy: the compiled model with the policy's collision bits and
+    margins (:meth:`_configure_filters`), what culling needs, and the variants of that model that checkers share.
+
+    A variant is the model with the held object welded at one pose and the far bodies switched off; checkers in
+    the same state use the same variant, and a variant is never written once made (a checker whose state changes
+    takes another one), so sharing changes no answer. The family keeps the last :data:`_VARIANTS` variants made.
+    """
+
+    def __init__(self, world: SceneConfig, scene: SceneConfig, object_body: str, policy: CollisionPolicy) -> None:
+        m = self.model = copy.deepcopy(_checker_model(world, scene.object))
+        h = self.handles = Handles.resolve(m, object_body)
+        self.held_body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, HELD_PREFIX + "object")
+        self.robot_bodies = h.robot_bodies | {self.held_body}
+        self.held_geoms = frozenset(int(g) for g in np.flatnonzero(m.geom_bodyid == self.held_body))
+        self.arm = slice(int(h.arm_qpos[0]), int(h.arm_qpos[0]) + 6)
+        assert np.array_equal(h.arm_qpos, np.arange(self.arm.start, self.arm.stop)), "arm qpos must be contiguous"
+        self._configure_filters(world, scene, policy)
+        self._prepare_culling()
+        self._variants: OrderedDict[bytes, mujoco.MjModel] = OrderedDict()
+
+    def _configure_filters(self, world: SceneConfig, scene: SceneConfig, policy: CollisionPolicy) -> None:
+        """Encode the policy in the model's contype/conaffinity bits and margins.
+
+        Every geom that takes part in collisions gets one class bit as its contype and, as its conaffinity,
+        the bits of the classes it must not touch. MuJoCo then only generates the contacts that count, so a
+        configuration is valid exactly when ``ncon == 0`` (no per-contact filtering in Python).
+        """
+        m, h = self.model, self.handles
+        OFF, ARM, GRIP, TABLE, ENV, OBJ = 0, 1, 2, 4, 8, 16
+        table = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "table")
+        cls = np.full(m.ngeom, ENV)
+        cls[np.isin(m.geom_bodyid, list(h.robot_bodies))] = ARM
+        cls[np.isin(m.geom_bodyid, list(h.gripper_bodies))] = GRIP
+        cls[m.geom_bodyid == table] = TABLE
+        # Surfaces objects are set down on count as the table: the bin's floor, and the object the one in hand is
+        # set on (a tower's top). The other objects, the bin's walls and the obstacles are the environment.
+        cls[surface_geoms(m, world, scene)] = TABLE
+        # Exactly one of the two objects takes part: the one resting in the world, or the one in the gripper.
+        cls[m.geom_bodyid == h.object_body] = OFF if policy.object_held else OBJ
+        cls[m.geom_bodyid == self.held_body] = OBJ if policy.object_held else OFF
+        pairs = {(ARM, ARM), (ARM, GRIP), (ARM, TABLE), (ARM, ENV), (ARM, OBJ), (GRIP, GRIP), (GRIP, TABLE),
+                 (GRIP, ENV)}
+        if not (policy.allow_gripper_object or policy.object_held):
+            pairs.add((GRIP, OBJ))
+        if policy.object_held:
+            pairs.add((OBJ, ENV))
+            if not policy.allow_object_table:
+                pairs.add((OBJ, TABLE))
+        affinity = {c: 0 for c in (OFF, ARM, GRIP, TABLE, ENV, OBJ)}
+        for a, b in pairs:
+            affinity[a] |= b
+            affinity[b] |= a
+        active = (m.geom_contype | m.geom_conaffinity) != 0  # visual geoms stay out
+        m.geom_contype[active] = cls[active]
+        m.geom_conaffinity[active] = [affinity[int(c)] for c in cls[active]]
+        # MuJoCo uses the larger margin of a pair: margins on the environment (and on the carried object) keep
+        # the robot clear of them, while robot self-collision is checked at actual contact (adjacent housings
+        # of the UR5e sit closer than any useful margin).
+        m.geom_margin[:] = 0.0
+        m.geom_margin[cls == ENV] = policy.margin_m
+        m.geom_margin[cls == TABLE] = policy.margin_m if policy.table_margin_m is None else policy.table_margin_m
+        if policy.object_held:
+            m.geom_margin[cls == OBJ] = policy.margin_m
+        # The broad phase works on bodies: it filters body pairs by the OR of their geoms' bits and pads each
+        # body's bounds by its largest geom margin, both computed at compile time, so they are redone here.
+        _body_bits(m, m.geom_contype, m.geom_conaffinity)
+        body_margin = np.zeros(m.nbody)
+        np.maximum.at(body_margin, m.geom_bodyid, m.geom_margin)
+        m.body_margin[:] = body_margin
+        self.contype, self.conaffinity = m.geom_contype.copy(), m.geom_conaffinity.copy()
+        for a in (self.contype, self.conaffinity):
+            a.setflags(write=False)
+
+    def _prepare_culling(self) -> None:
+        """Which geoms could be switched off as out of reach, and the kinematic chain that bounds the reach."""
+        m = self.model
+        active = (self.contype | self.conaffinity) != 0
+        body = m.geom_bodyid
+        unbounded = np.unique(body[active & (m.geom_rbound <= 0.0)])  # planes: always on, with their bodies
+        robot = np.array(sorted(self.robot_bodies))
+        candidates = active & ~np.isin(body, robot) & ~np.isin(body, unbounded) & (body > 0)
+        self.cull_geoms = np.flatnonzero(candidates)
+        self.cull_bodies = body[self.cull_geoms]
+        self.cull_rbound = m.geom_rbound[self.cull_geoms].copy()
+        self.base_body = int(robot.min())
+        self._chain_order = [int(b) for b in robot[1:]]
+        self._robot_geoms = np.flatnonzero(active & np.isin(body, robot))
+        self._slide_travel = np.zeros(m.nbody)
+        for j in np.flatnonzero(m.jnt_type == mujoco.mjtJoint.mjJNT_SLIDE):
+            b = m.jnt_bodyid[j]
+            self._slide_travel[b] = max(self._slide_travel[b], float(np.abs(m.jnt_range[j]).max()))
+        self._max_margin = float(m.geom_margin.max())
+        self._reach: dict[bytes, float] = {}
+
+    def held_pose(self, T_tcp_object: pin.SE3) -> tuple[np.ndarray, np.ndarray]:
+        """The held object's body pose in its parent (the body carrying the tcp site): T_tcp_site * T_tcp_object, as
+        (position (3,), quaternion (4,))."""
+        m, tcp = self.model, self.handles.tcp_site
+        R_parent_tcp = np.empty(9)
+        mujoco.mju_quat2Mat(R_parent_tcp, m.site_quat[tcp])
+        R_parent_tcp = R_parent_tcp.reshape(3, 3)
+        quat = np.empty(4)
+        mujoco.mju_mat2Quat(quat, (R_parent_tcp @ T_tcp_object.rotation).ravel())
+        return m.site_pos[tcp] + R_parent_tcp @ T_tcp_object.translation, quat
+
+    def chain_reach(self, held_pos: np.ndarray) -> float:
+        """:meth:`CollisionChecker.reach_m` with the held object's body at ``held_pos`` (3,) in its parent (m)."""
+        m = self.model
+        body_pos = m.body_pos.copy()
+        body_pos[self.held_body] = held_pos
+        offset = np.linalg.norm(body_pos, axis=1) + self._slide_travel
+        chain = np.zeros(m.nbody)
+        for b in self._chain_order:  # the robot's bodies after the base; MuJoCo numbers a body after its parent
+            chain[b] = chain[m.body_parentid[b]] + offset[b]
+        g = self._robot_geoms
+        return float(np.max(chain[m.geom_bodyid[g]] + np.linalg.norm(m.geom_pos[g], axis=1) + m.geom_rbound[g]
+                            + m.geom_margin[g]))
+
+    def reach(self, held_pos: np.ndarray) -> float:
+        """The culling bound (m): :meth:`chain_reach` plus the largest margin (remembered per held position)."""
+        key = held_pos.tobytes()
+        if key not in self._reach:
+            if len(self._reach) >= _VARIANTS:
+                self._reach.pop(next(iter(self._reach)))
+            self._reach[key] = self.chain_reach(held_pos) + self._max_margin
+        return self._reach[key]
+
+    def variant(self, held: tuple[np.ndarray, np.ndarray], far: np.ndarray) -> mujoco.MjModel:
+        """The shared model with the held object's body at ``held`` (position (3,), quaternion (4,) in its parent)
+        and the collisions of the bodies ``far`` (nbody,) bool switched off; made on first use, never written
+        after."""
+        key = held[0].tobytes() + held[1].tobytes() + np.packbits(far).tobytes()
+        m = self._variants.get(key)
+        if m is not None:
+            self._variants.move_to_end(key)
+            return m
+        m = copy.deepcopy(self.model)
+        m.body_pos[self.held_body], m.body_quat[self.held_body] = held
+        if far.any():
+            off = far[m.geom_bodyid]
+            _body_bits(m, np.where(off, 0, self.contype), np.where(off, 0, self.conaffinity))
+        self._variants[key] = m
+        if len(self._variants) > _VARIANTS:
+            self._variants.popitem(last=False)
+        return m
+
+
+_VARIANTS = 8
+"""Variants of a checker model kept per family (held poses and sets of far bodies): a task re-aims a checker at a
+few grasps at a time; an older variant stays alive for as long as a checker uses it."""
+
+
+def _body_bits(m: mujoco.MjModel, contype: np.ndarray, conaffinity: np.ndarray) -> None:
+    """Write the geoms' collision bits (ngeom,) into ``m`` and each body's OR of its geoms' bits, which the broad
+    phase filters body pairs by (computed at compile time, so redone here)."""
+    m.geom_contype[:] = contype
+    m.geom_conaffinity[:] = conaffinity
+    for bits, out in ((contype, m.body_contype), (conaffinity, m.body_conaffinity)):
+        acc = np.zeros(m.nbody, dtype=bits.dtype)
+        np.bitwise_or.at(acc, m.geom_bodyid, bits)
+        out[:] = acc
+
+
+@functools.lru_cache(maxsize=32)
+def _model_family(world: SceneConfig, scene: SceneConfig, object_body: str, policy: CollisionPolicy) -> _ModelFamily:
+    """The :class:`_ModelFamily` of a scene (``world``, the one the simulation was built from), the pick and place
+    worked on (``scene``: its object is the one carried, its support a surface), the resting object's body and a
+    policy whose ``finger_m`` is 0 (the fingers are state, not model); made once per process and kept for the last
+    32 such combinations."""
+    return _ModelFamily(world, scene, object_body, policy)
 
 
 HELD_PREFIX = "held_"
@@ -359,9 +444,10 @@ def _checker_model(scene: SceneConfig, held: ObjectConfig) -> mujoco.MjModel:
     """The scene compiled with a copy of the object ``held`` welded to the tcp's body (compiled once per scene and
     object).
 
-    The seen-obstacle columns collide here (in the simulation they do not exist). Nothing else changes: the
-    qpos and mocap layouts are the simulation's, so world states carry over. Each checker
-    works on its own deep copy (it edits the collision bits, the margins and the held object's pose).
+    The seen-obstacle columns collide here (in the simulation they do not exist). Nothing else that collides
+    changes: the qpos and mocap layouts are the simulation's, so world states carry over. Each
+    :class:`_ModelFamily` works on its own deep copy (it edits the collision bits, the margins and the held
+    object's pose).
     """
     spec = scene_spec(scene)
     for name in SEEN_OBSTACLE_NAMES:  # the obstacles the robot has seen take part here (as the map's do)
@@ -370,5 +456,11 @@ def _checker_model(scene: SceneConfig, held: ObjectConfig) -> mujoco.MjModel:
     tcp_body = spec.site("tcp").parent
     body = tcp_body.add_body(name=HELD_PREFIX + "object")
     add_object_geoms(spec, body, held, contact=False, prefix=HELD_PREFIX)
+    # No textures: nothing renders this model, and they were most of its compile time (27 -> 4 ms) and of its
+    # size (5 MB -> 0.1 MB), which every copy of it paid for.
+    for material in spec.materials:
+        material.textures = [""] * len(material.textures)
+    for texture in list(spec.textures):
+        spec.delete(texture)
     with quiet_attach():
         return spec.compile()
