@@ -18,42 +18,40 @@ from pickplace.grasping.configurations import GraspConfigurations
 from pickplace.motion import control
 from pickplace.motion.control import ControlConfig, line_duration_s, min_jerk
 from pickplace.motion.limits import LimitMeter, LineMeter
+from pickplace.motion.loop import Measured
 from pickplace.motion.timing import TimingConfig
 from pickplace.robot.ik import solve_line
 from pickplace.robot.kinematics import frame_pose
-from pickplace.robot.model import Robot
+from pickplace.robot.model import ARM_STATE_WIDTH, Robot
 
 VLIM = np.array(TimingConfig().velocity_limits_rad_s)
 ALIM = np.array(TimingConfig().acceleration_limits_rad_s2)
 
 
-def _step(robot: Robot, d: mujoco.MjData, qd: np.ndarray, tau: np.ndarray) -> None:
-    """Write the state of the next physics step: the arm's joint speeds (6,) (rad/s) and torques (6,) (N m)."""
-    h = robot.handles
-    d.time += float(robot.mj.opt.timestep)
-    d.qvel[h.arm_dof] = qd
-    d.ctrl[h.arm_actuators] = tau
+def _rows(qd: np.ndarray, tau: np.ndarray, tcp: np.ndarray | None = None) -> np.ndarray:
+    """Rows of a control loop's tape of the arm's state (robot.model.ARM_STATE_FIELDS) from the joints' speeds
+    (k, 6) (rad/s), the torques applied (k, 6) (N m) and the tcp (k, 3) (m; zeros if None); positions zero."""
+    qd, tau = np.atleast_2d(qd), np.atleast_2d(tau)
+    rows = np.zeros((len(qd), ARM_STATE_WIDTH))
+    rows[:, 6:12], rows[:, 12:18] = qd, tau
+    if tcp is not None:
+        rows[:, 18:21] = tcp
+    return rows
 
 
 def test_the_limit_meter_counts_every_step_over_a_limit_by_kind_and_phase(robot: Robot) -> None:
-    d = mujoco.MjData(robot.mj)
     dt = float(robot.mj.opt.timestep)
     meter = LimitMeter(robot, VLIM, ALIM)
     tau_max = np.asarray(robot.torque_limits_nm)
     zero = np.zeros(6)
-    meter(d, "A")  # at rest: the first step has no acceleration to measure
-    # elbow at half its acceleration limit for one step: within
+    # at rest (the first step has no acceleration to measure); the elbow at half its acceleration limit for one
+    # step: within; the same speed again: no acceleration
     qd = np.array([0.0, 0.0, 0.5 * ALIM[2] * dt, 0.0, 0.0, 0.0])
-    _step(robot, d, qd, zero)
-    meter(d, "A")
-    # the same speed again: no acceleration
-    _step(robot, d, qd, zero)
-    meter(d, "A")
+    meter.add(_rows([zero, qd, qd], [zero, zero, zero]), 0.0, "A")
     # wrist_3 jumps to 1.1x its speed limit in one step (far past its acceleration limit), and shoulder_lift's
     # torque is at its limit: one step over all three
     qd2 = qd + np.array([0, 0, 0, 0, 0, 1.1 * VLIM[5]])
-    _step(robot, d, qd2, np.array([0.0, tau_max[1], 0.0, 0.0, 0.0, 0.0]))
-    meter(d, "B")
+    meter.add(_rows(qd2, [0.0, tau_max[1], 0.0, 0.0, 0.0, 0.0]), 3 * dt, "B")
     rep = meter.report()
     assert rep.samples == 4 and rep.hold_samples == 0
     assert rep.speed_ratio_max == pytest.approx(1.1)
@@ -62,15 +60,14 @@ def test_the_limit_meter_counts_every_step_over_a_limit_by_kind_and_phase(robot:
     assert (rep.speed_violations, rep.acceleration_violations, rep.torque_violations) == (1, 1, 1)
     assert rep.violations == 1 and rep.violations_by_phase == {"B": 1}
     assert rep.worst.startswith("acceleration of wrist_3 in B")
+    assert "t = 0.003 s" in rep.worst
     # the speed held over its limit: a speed violation only, in its phase
-    _step(robot, d, qd2, zero)
-    meter(d, "C")
+    meter.add(_rows(qd2, zero), 4 * dt, "C")
     rep = meter.report()
     assert (rep.speed_violations, rep.acceleration_violations, rep.torque_violations) == (2, 1, 1)
     assert rep.violations == 2 and rep.violations_by_phase == {"B": 1, "C": 1}
     # a step while the arm is told to hold still is counted apart
-    _step(robot, d, zero, zero)
-    meter(d, "CLOSE", moving=False)
+    meter.add(_rows(zero, zero), 5 * dt, "CLOSE", moving=False)
     rep = meter.report()
     assert rep.samples == 5 and rep.violations == 2
     assert rep.hold_samples == 1 and rep.hold_violations == 1 and rep.hold_violations_by_phase == {"CLOSE": 1}
@@ -80,52 +77,95 @@ def test_the_limit_meter_counts_every_step_over_a_limit_by_kind_and_phase(robot:
 def test_the_limit_meter_does_not_difference_across_a_gap_in_time(robot: Robot) -> None:
     """An acceleration is the change of speed over one physics step; two states further apart (another loop ran
     in between, unmeasured) give none."""
-    d = mujoco.MjData(robot.mj)
+    dt = float(robot.mj.opt.timestep)
     meter = LimitMeter(robot, VLIM, ALIM)
-    meter(d, "A")
-    d.time += 5 * float(robot.mj.opt.timestep)
-    d.qvel[robot.handles.arm_dof] = 0.5 * VLIM
-    meter(d, "A")
+    meter.add(_rows(np.zeros(6), np.zeros(6)), 0.0, "A")
+    meter.add(_rows(0.5 * VLIM, np.zeros(6)), 5 * dt, "A")
     rep = meter.report()
     assert rep.acceleration_ratio_max == 0.0 and rep.violations == 0
     assert rep.speed_ratio_max == pytest.approx(0.5)
+    meter.add(_rows(0.6 * VLIM, np.zeros(6)), 6 * dt, "A")  # the next step: differenced with the last one
+    assert meter.report().acceleration_ratio_max == pytest.approx(float(np.max(0.1 * VLIM / dt / ALIM)))
 
 
-def test_the_limit_meter_reduces_batches_as_it_would_step_by_step(robot: Robot) -> None:
-    """Steps are buffered and reduced in batches: 1,000 random steps across phases, holds, a gap in time and batch
-    boundaries give the same figures as a meter that reduces every step."""
-
-    class EveryStep(LimitMeter):
-        BATCH = 1
-
+def test_the_limit_meter_gives_the_same_figures_whatever_the_blocks(robot: Robot) -> None:
+    """The loops hand the meter their tapes in blocks of any size: 1,000 random steps across phases, holds and a gap
+    in time, given step by step and in random blocks, give the same figures."""
     rng = np.random.default_rng(3)
-    d = mujoco.MjData(robot.mj)
-    batched, single = LimitMeter(robot, VLIM, ALIM), EveryStep(robot, VLIM, ALIM)
+    dt = float(robot.mj.opt.timestep)
     tau_max = np.asarray(robot.torque_limits_nm)
     qd = np.zeros(6)
+    steps = []
+    t = 0.0
     for k in range(1000):
         qd = qd + rng.normal(0.0, 0.012, 6) * ALIM  # now and then past the acceleration limit
         tau = np.where(rng.random(6) < 0.002, tau_max, rng.uniform(-0.5, 0.5, 6) * tau_max)
-        _step(robot, d, np.clip(qd, -1.05 * VLIM, 1.05 * VLIM), tau)
         if k == 600:
-            d.time += 0.5  # another loop ran in between, unmeasured
+            t += 0.5  # another loop ran in between, unmeasured
         phase, moving = ("A", True) if k < 300 else ("CLOSE", False) if k < 420 else ("B", True)
-        batched(d, phase, moving)
-        single(d, phase, moving)
-    a, b = batched.report(), single.report()
+        steps.append((np.clip(qd, -1.05 * VLIM, 1.05 * VLIM), tau, t, phase, moving))
+        t += dt
+    single, blocks = LimitMeter(robot, VLIM, ALIM), LimitMeter(robot, VLIM, ALIM)
+    for v, tau, t0, phase, moving in steps:
+        single.add(_rows(v, tau), t0, phase, moving)
+    start = 0
+    while start < len(steps):  # blocks of random length that end at a change of phase or a gap at the latest
+        end = min(len(steps), start + int(rng.integers(1, 300)))
+        for k in range(start + 1, end):
+            if steps[k][3:] != steps[start][3:] or abs(steps[k][2] - steps[k - 1][2] - dt) > 1e-9:
+                end = k
+                break
+        v, tau = np.array([x[0] for x in steps[start:end]]), np.array([x[1] for x in steps[start:end]])
+        blocks.add(_rows(v, tau), steps[start][2], *steps[start][3:])
+        start = end
+    a, b = single.report(), blocks.report()
     assert a.violations > 0 and a.hold_violations > 0
-    assert a == b
+    assert a.samples == b.samples == 880 and a.hold_samples == b.hold_samples == 120
+    assert (a.violations, a.hold_violations, a.violations_by_phase, a.hold_violations_by_phase) == (
+        b.violations, b.hold_violations, b.violations_by_phase, b.hold_violations_by_phase)
+    assert (a.speed_violations, a.acceleration_violations, a.torque_violations) == (
+        b.speed_violations, b.acceleration_violations, b.torque_violations)
+    assert a.worst == b.worst and a.hold_worst == b.hold_worst
+    for x, y in ((a.speed_ratio_max, b.speed_ratio_max), (a.acceleration_ratio_max, b.acceleration_ratio_max),
+                 (a.torque_ratio_max, b.torque_ratio_max)):
+        assert x == pytest.approx(y, rel=1e-12)
 
 
-def test_the_line_meter_measures_the_distance_from_the_line(robot: Robot) -> None:
-    d = mujoco.MjData(robot.mj)
-    site = robot.handles.tcp_site
+def test_the_line_meter_measures_the_distance_from_the_line() -> None:
     a, b = np.array([0.5, 0.1, 0.4]), np.array([0.5, 0.1, 0.25])
-    meter = LineMeter(robot, a, b)
-    for p in ([0.5, 0.1, 0.3], [0.5003, 0.0996, 0.35], [0.5, 0.1, 0.1]):  # on it, 0.5 mm off it, on it past b
-        d.site_xpos[site] = p
-        meter(d)
+    meter = LineMeter(a, b)
+    tcp = np.array([[0.5, 0.1, 0.3], [0.5003, 0.0996, 0.35], [0.5, 0.1, 0.1]])  # on it, 0.5 mm off it, on it past b
+    meter.add(_rows(np.zeros((3, 6)), np.zeros((3, 6)), tcp)[:1])
+    assert meter.max_m == pytest.approx(0.0, abs=1e-12)
+    meter.add(_rows(np.zeros((3, 6)), np.zeros((3, 6)), tcp)[1:])
     assert meter.max_m == pytest.approx(5e-4, rel=1e-9)
+
+
+def test_the_loops_tape_is_the_arm_state_of_every_step(robot: Robot) -> None:
+    """A loop hands a Measured hook one row per physics step, in order and without a gap, each the arm's state at the
+    start of its step (positions, velocities, torques applied in it, tcp), whatever the block boundaries."""
+    d = robot.make_data()
+    rows: list[np.ndarray] = []
+    starts: list[float] = []
+    states: list[np.ndarray] = []
+
+    def tape(block: np.ndarray, t0_s: float) -> None:
+        rows.extend(block.copy())
+        starts.append(t0_s)
+
+    h = robot.handles
+
+    def step(data: mujoco.MjData) -> None:
+        states.append(np.concatenate((data.qvel[h.arm_dof], data.actuator_force[h.arm_actuators])))
+
+    q0 = d.qpos[h.arm_qpos].copy()
+    control.hold(robot, d, q0, 1.3, ControlConfig(), hook=Measured(step, tape), comply_along=np.array([0, 0, 1.0]))
+    assert len(rows) == len(states) == 1300
+    assert starts[0] == 0.0 and len(starts) >= 3  # several blocks (TAPE_CHUNK rows each)
+    np.testing.assert_allclose(np.array(rows)[0, :6], q0, rtol=0, atol=1e-12)
+    # the velocities of a row are those after the step before it; the torques, the ones applied in its step
+    np.testing.assert_allclose(np.array(rows)[1:, 6:12], np.array(states)[:-1, :6], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.array(rows)[:, 12:18], np.array(states)[:, 6:], rtol=0, atol=1e-12)
 
 
 def test_a_straight_move_is_timed_within_the_joints_limits(robot: Robot, configs: GraspConfigurations) -> None:

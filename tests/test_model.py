@@ -147,22 +147,70 @@ def test_scene_compiles_with_named_elements(robot: model.Robot) -> None:
     np.testing.assert_array_equal(m.key_qpos[0][robot.handles.arm_qpos], robot.home_q)
 
 
-def test_arm_actuators_are_motors_with_ur_torque_limits(robot: model.Robot) -> None:
+def test_arm_actuators_are_torque_motors_with_ur_torque_limits(robot: model.Robot) -> None:
     m = robot.mj
     for (act, joint), limit in zip(ACTUATOR_JOINT.items(), TORQUE_LIMITS, strict=True):
         a = _id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, act)
-        # a motor: direct joint transmission, no dynamics, unit fixed gain, no bias
+        # as built, a torque motor: direct joint transmission, no dynamics, unit fixed gain, a zero affine bias (the
+        # joint servos set it, motion.loop.ServoGains), the force clamped to the torque limit
         assert m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
         assert m.joint(int(m.actuator_trnid[a, 0])).name == joint
         assert m.actuator_dyntype[a] == mujoco.mjtDyn.mjDYN_NONE
         assert m.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_FIXED
         assert m.actuator_gainprm[a, 0] == 1.0
-        assert m.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_NONE
+        assert m.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_AFFINE
+        np.testing.assert_array_equal(m.actuator_biasprm[a, :3], 0.0)
         assert m.actuator_gear[a, 0] == 1.0
-        assert m.actuator_ctrllimited[a]
-        np.testing.assert_allclose(m.actuator_ctrlrange[a], [-limit, limit], rtol=0, atol=1e-12)
+        assert not m.actuator_ctrllimited[a]
+        assert m.actuator_forcelimited[a]
+        np.testing.assert_allclose(m.actuator_forcerange[a], [-limit, limit], rtol=0, atol=1e-12)
     np.testing.assert_allclose(robot.torque_limits_nm, TORQUE_LIMITS, rtol=0, atol=1e-12)
     np.testing.assert_allclose(model.TORQUE_LIMITS_NM, TORQUE_LIMITS, rtol=0, atol=1e-12)
+
+
+def test_a_torque_motor_applies_its_control_clamped_to_the_limit(robot: model.Robot) -> None:
+    m, h = robot.mj, robot.handles
+    d = robot.make_data()
+    d.ctrl[h.arm_actuators] = [10.0, -200.0, 149.0, 30.0, -5.0, 0.5]
+    mujoco.mj_forward(m, d)
+    np.testing.assert_allclose(d.actuator_force[h.arm_actuators], [10.0, -150.0, 149.0, 28.0, -5.0, 0.5],
+                               rtol=0, atol=1e-12)
+
+
+def test_the_arm_state_sensors_read_the_joints_the_actuators_and_the_tcp(robot: model.Robot) -> None:
+    m, h = robot.mj, robot.handles
+    d = robot.make_data()
+    rng = np.random.default_rng(0)
+    d.qpos[h.arm_qpos] += rng.uniform(-0.2, 0.2, 6)
+    d.qvel[h.arm_dof] = rng.uniform(-1.0, 1.0, 6)
+    d.ctrl[h.arm_actuators] = rng.uniform(-20.0, 20.0, 6)
+    mujoco.mj_forward(m, d)
+    a = h.arm_state_sensor
+    block = d.sensordata[a : a + model.ARM_STATE_WIDTH]
+    np.testing.assert_allclose(block[0:6], d.qpos[h.arm_qpos], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(block[6:12], d.qvel[h.arm_dof], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(block[12:18], d.actuator_force[h.arm_actuators], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(block[18:21], d.site_xpos[h.tcp_site], rtol=0, atol=1e-12)
+
+
+def test_the_contact_count_sensors_count_the_contacts_they_name() -> None:
+    robot = model.build()
+    m, h = robot.mj, robot.handles
+    d = robot.make_data()
+    d.ctrl[h.arm_actuators] = 0.0  # the arm falls onto the table, beside the cube
+    gripper = h.gripper_bodies
+    seen = 0
+    for _ in range(400):
+        mujoco.mj_step(m, d)
+        robot_n = object_n = hand_n = 0
+        for g1, g2 in d.contact.geom[: d.ncon]:
+            b1, b2 = int(m.geom_bodyid[g1]), int(m.geom_bodyid[g2])
+            robot_n += b1 in h.robot_bodies or b2 in h.robot_bodies
+            object_n += h.object_body in (b1, b2)
+            hand_n += (b1 in gripper and b2 == h.object_body) or (b2 in gripper and b1 == h.object_body)
+        np.testing.assert_array_equal(d.sensordata[h.contact_count_sensors], [robot_n, object_n, hand_n])
+        seen = max(seen, robot_n)
+    assert seen > 0  # the arm did reach the table
 
 
 def test_cube_table_and_timestep(robot: model.Robot) -> None:

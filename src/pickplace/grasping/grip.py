@@ -165,19 +165,18 @@ def com_accelerations(robot: Robot, traj: Trajectory, com_tcp_m: np.ndarray, fin
     model, data, fid = robot.pin, robot.pin.createData(), robot.pin_tcp_frame
     ts = np.arange(0.0, traj.duration_s + dt_s, dt_s)
     qs, qds, qdds = traj.sample_many(ts)
-    out = np.empty((len(ts), 3))
+    n = len(ts)
+    lin, ang, w, r = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
     v, a = np.zeros(model.nv), np.zeros(model.nv)
     r_tcp = np.asarray(com_tcp_m, dtype=float)
-    for k in range(len(ts)):
+    for k in range(n):
         v[:6], a[:6] = qds[k], qdds[k]
         pin.forwardKinematics(model, data, robot.pin_q(qs[k], finger_m), v, a)
         acc = pin.getFrameClassicalAcceleration(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
-        vel = pin.getFrameVelocity(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
-        R = pin.updateFramePlacement(model, data, fid).rotation
-        r = R @ r_tcp
-        w = vel.angular
-        out[k] = acc.linear + np.cross(acc.angular, r) + np.cross(w, np.cross(w, r))
-    return out
+        lin[k], ang[k] = acc.linear, acc.angular
+        w[k] = pin.getFrameVelocity(model, data, fid, pin.LOCAL_WORLD_ALIGNED).angular
+        r[k] = pin.updateFramePlacement(model, data, fid).rotation.dot(r_tcp)
+    return lin + np.cross(ang, r) + np.cross(w, np.cross(w, r))  # the cross products for every sample at once
 
 
 def slowdown_for_grip(accels: np.ndarray, capacity: GripCapacity) -> float:

@@ -57,7 +57,7 @@ from scipy.linalg.lapack import dgetrf as _getrf
 from scipy.linalg.lapack import dgetri as _getri
 
 from pickplace.errors import ConfigError, ControlError
-from pickplace.motion.loop import IDEAL, ControlLoop
+from pickplace.motion.loop import IDEAL, ControlLoop, LoopRun, Measured
 from pickplace.motion.timing import Trajectory
 from pickplace.robot.kinematics import frame_jacobian
 from pickplace.robot.model import Robot
@@ -88,6 +88,8 @@ LOCKED_FINGER_ARMATURE = 1e9
 SETTLE_SPEED_WINDOW_S = 0.02
 
 Hook = Callable[[mujoco.MjData], None]
+#: The torques' columns in a row of the arm's state tape (robot.model.ARM_STATE_FIELDS).
+_TAU = slice(12, 18)
 
 
 # --------------------------------------------------------------------------- #
@@ -557,7 +559,7 @@ def joint_impedance(
     if bandwidth_rad_s > 0.0:
         w = bandwidth_rad_s
         acc = (w * w) * (q_ref - q) + (2.0 * damping_ratio * w) * (qd_ref - qd)
-        tau = (arm_inertia(arm, q, finger_m) if inertia is None else inertia) @ acc
+        tau = (arm_inertia(arm, q, finger_m) if inertia is None else inertia).dot(acc)
         if feedforward:
             arm._v[:N_ARM] = qd_ref
             arm._a[:N_ARM] = qdd_ref
@@ -678,30 +680,30 @@ def _cartesian_law(arm: ArmModel, q: np.ndarray, qd: np.ndarray, p_ref: np.ndarr
     M = pin.crba(model, data, qp)[:N_ARM, :N_ARM]
     nle = pin.nonLinearEffects(model, data, qp, vp)[:N_ARM]
     X = _inverse(J)  # J^-1; raises LinAlgError at a singularity
-    MX = np.where(_UPPER, M, M.T) @ X  # crba fills the upper triangle: M J^-1 = J^T Lambda
-    Lam = X.T @ MX
+    MX = np.where(_UPPER, M, M.T).dot(X)  # crba fills the upper triangle: M J^-1 = J^T Lambda
+    Lam = X.T.dot(MX)
 
     position = T.translation.copy()
-    error = np.concatenate((p_ref - position, pin.log3(R_ref @ T.rotation.T)))
-    twist = J @ qd
+    error = np.concatenate((p_ref - position, pin.log3(R_ref.dot(T.rotation.T))))
+    twist = J.dot(qd)
     edot = v6_ref - twist
     acc = a6_ref - jdot_qd
 
     # J^T F with F = Lambda (a_d - Jdot qd) + ...: J^T Lambda = M J^-1; the null-space term N^T tau_posture is 0
     if bandwidth_rad_s > 0.0:
         w = bandwidth_rad_s
-        tau = MX @ (acc + (w * w) * error + (2.0 * damping_ratio * w) * edot)
+        tau = MX.dot(acc + (w * w) * error + (2.0 * damping_ratio * w) * edot)
         if integral is not None:
-            tau += integral @ J  # J^T integral
+            tau += integral.dot(J)  # J^T integral
     else:
         if modal_damping:
-            F = stiffness * error + modal_damping_matrix(Lam, stiffness, damping_ratio) @ edot
+            F = stiffness * error + modal_damping_matrix(Lam, stiffness, damping_ratio).dot(edot)
         else:
             F = stiffness * error + (2.0 * damping_ratio * np.sqrt(stiffness * np.abs(Lam.diagonal()))) * edot
         if integral is not None:
             F += integral
-        tau = MX @ acc
-        tau += F @ J  # J^T F
+        tau = MX.dot(acc)
+        tau += F.dot(J)  # J^T F
     tau += nle
     tau += arm.damping * qd
     return CartesianCommand(tau, error, twist, position, Lam)
@@ -1000,6 +1002,44 @@ class _Integral:
         return self.current
 
 
+def servo_setpoints(arm: ArmModel, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_ref: np.ndarray, kp: np.ndarray,
+                    kd: np.ndarray, finger_m: float = 0.0) -> np.ndarray:
+    """The controls (n, 6) that make joint servos (:class:`~pickplace.motion.loop.ServoGains`: MuJoCo applies
+    ``kp (u - q) - kd qd`` at every step) apply joint impedance with the reference's inverse dynamics.
+
+    ``u = q_ref + (kd qd_ref + tau_ff) / kp``, so that the servo's torque is
+    ``kp (q_ref - q) + kd (qd_ref - qd) + tau_ff`` with ``tau_ff = M(q_ref) qdd_ref + C(q_ref, qd_ref) qd_ref +
+    g(q_ref) + D qd_ref + h kd qdd_ref``: :func:`joint_impedance`'s feedforward evaluated on the reference instead of
+    the measured state (they differ by ``dg/dq e``, the tracking error times gravity's gradient), plus
+    ``h kd qdd_ref``: the integrator treats the servo's damping implicitly, ``(M + h (D + kd)) dv = h f``, as it does
+    the joints' own damping (:func:`arm_model`), so a state on the reference stays on it.
+
+    Args:
+        arm: The controller's model.
+        q_ref, qd_ref, qdd_ref: Reference positions (rad), velocities (rad/s), accelerations (rad/s^2) (n, 6).
+        kp, kd: Servo stiffness (6,) (N m/rad) and damping (6,) (N m s/rad), kp > 0.
+        finger_m: Finger slide travel (m).
+
+    Returns:
+        The controls (n, 6) (rad).
+    """
+    model, data = arm.model, arm.data
+    n = len(q_ref)
+    vel = np.zeros((n, model.nv))
+    vel[:, :N_ARM] = qd_ref
+    acc = np.zeros((n, model.nv))
+    acc[:, :N_ARM] = qdd_ref
+    pos = np.empty((n, model.nq))
+    pos[:, :N_ARM] = q_ref
+    pos[:, N_ARM:] = finger_m
+    rnea = pin.rnea
+    ff = np.array([rnea(model, data, q, v, a) for q, v, a in zip(pos, vel, acc, strict=True)])[:, :N_ARM]
+    ff += arm.damping * qd_ref
+    ff += (arm.timestep_s * kd) * qdd_ref
+    ff += kd * qd_ref
+    return q_ref + ff / kp
+
+
 def _run_joint(
     robot: Robot,
     d: mujoco.MjData,
@@ -1009,7 +1049,7 @@ def _run_joint(
     qdd_ref: np.ndarray,
     config: ControlConfig,
     payload: Payload | None,
-    hook: Hook | None,
+    hook: Hook | Measured | None,
     noise: JointNoise | None = None,
     loop: ControlLoop | None = None,
     yielding: np.ndarray | None = None,
@@ -1078,9 +1118,9 @@ def _run_joint(
         q_log[j] = q
         k_log[j] = i
         if yielding is not None:
-            q_ref[i:] += yielding @ (q - q_ref[i])
+            q_ref[i:] += yielding.dot(q - q_ref[i])
         e = q_ref[i] - q
-        if not e @ e <= err_filter:
+        if not e.dot(e) <= err_filter:  # (ndarray.dot: a quarter of the cost of @ on these small arrays)
             check(k, e)
         if k >= n:
             return None
@@ -1096,19 +1136,46 @@ def _run_joint(
             tau = joint_impedance(arm, q, qd, q_ref[i], qd_ref[i], qdd_ref[i], kp, kd, feedforward=ff,
                                   finger_m=finger_m, bandwidth_rad_s=bandwidth, damping_ratio=zeta_j, inertia=inertia)
             if integral is not None:
-                tau += integral.update(inertia @ e)
+                tau += integral.update(inertia.dot(e))
         else:
             tau = joint_impedance(arm, q, qd, q_ref[i], qd_ref[i], qdd_ref[i], kp, kd, feedforward=ff,
                                   finger_m=qpos[finger])
             if integral is not None:
                 tau += integral.update(e)
         scaled = tau * inv_limits
-        if not scaled @ scaled <= _FILTER and saturate(tau, limits):
+        if not scaled.dot(scaled) <= _FILTER and saturate(tau, limits):
             saturated += 1
         taus.append(tau)
         return tau
 
-    stats = loop.run(robot, d, law, hook, noise)
+    if fast and noise is None and yielding is None and loop.ideal:
+        # the feedback runs in MuJoCo's actuators at every physics step (joint servos): the controller sends each
+        # step's setpoint, ``q_ref + (kd qd_ref + tau_ff) / kp``, with the feedforward of the reference
+        # ``tau_ff = M(q_ref) qdd_ref + C(q_ref, qd_ref) qd_ref + g(q_ref) + D qd_ref + h kd qdd_ref`` (the last
+        # term: the integrator treats the servo's damping implicitly, as it does the joints', see arm_model)
+        setpoints = servo_setpoints(arm, q_ref[:n], qd_ref[:n], qdd_ref[:n], kp, kd, float(qpos[finger]))
+
+        def on_error(k: int, e: np.ndarray, rows: np.ndarray) -> None:
+            nonlocal j
+            j = k
+            q_log[:k] = rows[:, :N_ARM]
+            q_log[k] = d.qpos[h.arm_qpos]
+            k_log[: k + 1] = np.arange(k + 1)
+            taus[:] = list(rows[:, _TAU])
+            check(k, e)
+
+        rows = loop.run_servo(robot, d, setpoints, kp, kd, q_ref, err_filter, on_error, hook)
+        steps = len(rows)
+        j = steps
+        q_log[:steps] = rows[:, :N_ARM]
+        q_log[steps] = d.qpos[h.arm_qpos]
+        k_log[: steps + 1] = np.arange(steps + 1)
+        tau = rows[:, _TAU]
+        saturated = int(np.count_nonzero((np.abs(tau) >= limits * (1.0 - 1e-12)).any(axis=1)))
+        taus[:] = list(tau)
+        stats = LoopRun(steps, steps)
+    else:
+        stats = loop.run(robot, d, law, hook, noise)
     rec = record(j, stats.steps)
     log.debug("%s: %d steps, max error %.3g rad, rms %.3g rad, final %.3g rad, %d saturated steps", phase,
               rec.steps, rec.max_error_rad, rec.rms_error_rad, rec.final_error_rad, rec.saturation_events)
@@ -1122,7 +1189,7 @@ def track(
     config: ControlConfig,
     *,
     payload: Payload | None = None,
-    hook: Hook | None = None,
+    hook: Hook | Measured | None = None,
     noise: JointNoise | None = None,
     loop: ControlLoop | None = None,
     settle_s: float = 0.1,
@@ -1142,7 +1209,8 @@ def track(
         trajectory: The reference (rad, rad/s, rad/s^2), from :func:`pickplace.motion.timing.retime`.
         config: Gains.
         payload: An object held at the tcp (compensated in gravity and feedforward).
-        hook: Called with ``data`` after every simulation step; may raise to abort.
+        hook: Called with ``data`` after every simulation step; may raise to abort (a
+            :class:`~pickplace.motion.loop.Measured` hook also gets the tape of the arm's state).
         noise: Noise added to the joint positions the controller reads (a sensor fault), or None.
         loop: The control loop (rate, latency, encoders: :class:`~pickplace.motion.loop.ControlLoop`); None:
             the ideal loop (exact state, every physics step).
@@ -1179,7 +1247,7 @@ def hold(
     config: ControlConfig,
     *,
     payload: Payload | None = None,
-    hook: Hook | None = None,
+    hook: Hook | Measured | None = None,
     noise: JointNoise | None = None,
     loop: ControlLoop | None = None,
     comply_along: np.ndarray | None = None,
@@ -1193,7 +1261,8 @@ def hold(
         duration_s: How long (s).
         config: Gains.
         payload: An object held at the tcp.
-        hook: Called with ``data`` after every simulation step; may raise to abort.
+        hook: Called with ``data`` after every simulation step; may raise to abort (a
+            :class:`~pickplace.motion.loop.Measured` hook also gets the tape of the arm's state).
         noise: Noise added to the joint positions the controller reads (a sensor fault), or None.
         loop: The control loop (rate, latency, encoders: :class:`~pickplace.motion.loop.ControlLoop`); None:
             the ideal loop (exact state, every physics step).
@@ -1240,7 +1309,7 @@ def stop(
     config: ControlConfig,
     *,
     payload: Payload | None = None,
-    hook: Hook | None = None,
+    hook: Hook | Measured | None = None,
     noise: JointNoise | None = None,
     loop: ControlLoop | None = None,
     settle_s: float = 0.1,
@@ -1258,7 +1327,8 @@ def stop(
         decel_rad_s2: Deceleration limits per joint (6,) (rad/s^2), e.g. the trajectory's acceleration limits.
         config: Gains.
         payload: An object held at the tcp.
-        hook: Called with ``data`` after every simulation step; may raise to abort.
+        hook: Called with ``data`` after every simulation step; may raise to abort (a
+            :class:`~pickplace.motion.loop.Measured` hook also gets the tape of the arm's state).
         noise: Noise added to the joint positions the controller reads (a sensor fault), or None.
         loop: The control loop (rate, latency, encoders: :class:`~pickplace.motion.loop.ControlLoop`); None:
             the ideal loop (exact state, every physics step).
@@ -1293,7 +1363,7 @@ def move_vertical(
     config: ControlConfig,
     *,
     payload: Payload | None = None,
-    hook: Hook | None = None,
+    hook: Hook | Measured | None = None,
     noise: JointNoise | None = None,
     loop: ControlLoop | None = None,
     duration_s: float | None = None,
@@ -1381,7 +1451,7 @@ def move_linear(
     config: ControlConfig,
     *,
     payload: Payload | None = None,
-    hook: Hook | None = None,
+    hook: Hook | Measured | None = None,
     noise: JointNoise | None = None,
     loop: ControlLoop | None = None,
     duration_s: float | None = None,
@@ -1404,7 +1474,8 @@ def move_linear(
         target_m: Target tcp position (3,) in the world (m).
         config: Gains and motion parameters.
         payload: An object held at the tcp.
-        hook: Called with ``data`` after every simulation step; may raise to abort.
+        hook: Called with ``data`` after every simulation step; may raise to abort (a
+            :class:`~pickplace.motion.loop.Measured` hook also gets the tape of the arm's state).
         noise: Noise added to the joint positions the controller reads (a sensor fault), or None.
         loop: The control loop (rate, latency, encoders: :class:`~pickplace.motion.loop.ControlLoop`); None:
             the ideal loop (exact state, every physics step).
@@ -1533,9 +1604,9 @@ def move_linear(
             return None
         tau = cmd.tau
         if integral is not None:
-            integral.update(error if bandwidth == 0.0 else cmd.task_inertia @ error)
+            integral.update(error if bandwidth == 0.0 else cmd.task_inertia.dot(error))
         scaled = tau * inv_limits
-        if not scaled @ scaled <= _FILTER and saturate(tau, limits):
+        if not scaled.dot(scaled) <= _FILTER and saturate(tau, limits):
             saturated += 1
         taus.append(tau)
         return tau

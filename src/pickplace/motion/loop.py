@@ -32,7 +32,7 @@ import mujoco
 import numpy as np
 
 from pickplace.errors import ConfigError
-from pickplace.robot.model import Robot
+from pickplace.robot.model import ARM_STATE_WIDTH, Robot
 from pickplace.world.config import check_range
 
 if TYPE_CHECKING:
@@ -189,7 +189,7 @@ class ControlLoop:
         robot: Robot,
         d: mujoco.MjData,
         law: Law,
-        hook: Hook | None,
+        hook: Hook | Measured | None,
         noise: JointNoise | None = None,
     ) -> LoopRun:
         """Run ``law`` until it returns None, stepping the physics underneath.
@@ -198,7 +198,8 @@ class ControlLoop:
             robot: The models.
             d: MuJoCo data, advanced in place; only the six arm motors' controls are written.
             law: The control law (:data:`Law`); it clips its torques to the motors' limits itself.
-            hook: Called with ``d`` after every physics step; may raise to abort.
+            hook: Called with ``d`` after every physics step; may raise to abort. A :class:`Measured` hook also
+                gets the tape of the arm's state (:class:`Measured`).
             noise: The sensor fault (noise added to the positions read), or None.
 
         Returns:
@@ -207,66 +208,226 @@ class ControlLoop:
         m, h = robot.mj, robot.handles
         qpos, qvel, ctrl = d.qpos, d.qvel, d.ctrl  # arrays aliasing d's memory
         arm_q, arm_v, arm_u = _selector(h.arm_qpos), _selector(h.arm_dof), _selector(h.arm_actuators)
+        step_hook, tape = _split(hook, robot, d, TAPE_CHUNK)
         ticks = 0
         k = 0
         step = mujoco.mj_step
-        if self.config.ideal:
-            # exact state, torque applied in the same step; the arm's joints are consecutive in qpos and qvel, so
-            # the state is read through two views made once (the law gets views of d's memory, as before)
-            q_view = qpos[arm_q] if isinstance(arm_q, slice) else None
-            v_view = qvel[arm_v] if isinstance(arm_v, slice) else None
+        try:
+            if self.config.ideal:
+                # exact state, torque applied in the same step; the arm's joints are consecutive in qpos and qvel,
+                # so the state is read through two views made once (the law gets views of d's memory)
+                q_view = qpos[arm_q] if isinstance(arm_q, slice) else None
+                v_view = qvel[arm_v] if isinstance(arm_v, slice) else None
+                while True:
+                    q = (qpos[arm_q] if q_view is None else q_view) if noise is None else qpos[arm_q] + noise.sample()
+                    tau = law(k, q, qvel[arm_v] if v_view is None else v_view)
+                    if tau is None:
+                        return LoopRun(k, ticks)
+                    ticks += 1
+                    ctrl[arm_u] = tau
+                    step(m, d)
+                    if tape is not None:
+                        tape.record()
+                    if step_hook is not None:
+                        step_hook(d)
+                    k += 1
+
+            cfg = self.config
+            dt = float(m.opt.timestep)
+            period, latency = cfg.steps(dt)
+            T = period * dt
+            res, std = cfg.encoder_resolution_rad, cfg.encoder_noise_std_rad
+            alpha = 1.0 - math.exp(-2.0 * math.pi * cfg.velocity_cutoff_hz * T) if cfg.velocity_cutoff_hz > 0 else 0.0
+            pending: deque[tuple[int, np.ndarray]] = deque()
+            q_prev: np.ndarray | None = None
+            v_est = np.array(qvel[arm_v])  # a warm filter: the estimate starts at the arm's velocity
+
             while True:
-                q = (qpos[arm_q] if q_view is None else q_view) if noise is None else qpos[arm_q] + noise.sample()
-                tau = law(k, q, qvel[arm_v] if v_view is None else v_view)
-                if tau is None:
-                    return LoopRun(k, ticks)
-                ticks += 1
-                ctrl[arm_u] = tau
+                if k % period == 0:
+                    q = np.array(qpos[arm_q])
+                    if res > 0.0:  # round(q / res) * res, in place
+                        np.divide(q, res, out=q)
+                        np.round(q, out=q)
+                        q *= res
+                    if std > 0.0:
+                        assert self.rng is not None
+                        q += self.rng.normal(0.0, std, N_ARM)
+                    if noise is not None:
+                        q += noise.sample()
+                    if alpha > 0.0:
+                        if q_prev is not None:
+                            v_est += alpha * ((q - q_prev) / T - v_est)
+                        q_prev = q
+                        qd = v_est.copy()
+                    else:
+                        qd = np.array(qvel[arm_v])
+                    tau = law(k, q, qd)
+                    if tau is None:
+                        return LoopRun(k, ticks)
+                    ticks += 1
+                    pending.append((k + latency, np.array(tau)))
+                while pending and pending[0][0] <= k:
+                    ctrl[arm_u] = pending.popleft()[1]
                 step(m, d)
-                if hook is not None:
-                    hook(d)
+                if tape is not None:
+                    tape.record()
+                if step_hook is not None:
+                    step_hook(d)
                 k += 1
+        finally:
+            if tape is not None:
+                tape.flush()
 
-        cfg = self.config
-        dt = float(m.opt.timestep)
-        period, latency = cfg.steps(dt)
-        T = period * dt
-        res, std = cfg.encoder_resolution_rad, cfg.encoder_noise_std_rad
-        alpha = 1.0 - math.exp(-2.0 * math.pi * cfg.velocity_cutoff_hz * T) if cfg.velocity_cutoff_hz > 0 else 0.0
-        pending: deque[tuple[int, np.ndarray]] = deque()
-        q_prev: np.ndarray | None = None
-        v_est = np.array(qvel[arm_v])  # a warm filter: the estimate starts at the arm's velocity
+    def run_servo(
+        self,
+        robot: Robot,
+        d: mujoco.MjData,
+        setpoints: np.ndarray,
+        kp: np.ndarray,
+        kd: np.ndarray,
+        q_ref: np.ndarray,
+        max_error_sq: float,
+        on_error: Callable[[int, np.ndarray, np.ndarray], None],
+        hook: Hook | Measured | None,
+    ) -> np.ndarray:
+        """Run the arm's actuators as joint servos (:class:`ServoGains`) through ``len(setpoints)`` physics steps:
+        MuJoCo applies ``kp (setpoint - q) - kd qd``, clamped to the torque limits, at every step, in C; Python
+        only writes each step's setpoint, copies the arm's state block and calls the hook (ideal loop only).
 
-        while True:
-            if k % period == 0:
-                q = np.array(qpos[arm_q])
-                if res > 0.0:  # round(q / res) * res, in place
-                    np.divide(q, res, out=q)
-                    np.round(q, out=q)
-                    q *= res
-                if std > 0.0:
-                    assert self.rng is not None
-                    q += self.rng.normal(0.0, std, N_ARM)
-                if noise is not None:
-                    q += noise.sample()
-                if alpha > 0.0:
-                    if q_prev is not None:
-                        v_est += alpha * ((q - q_prev) / T - v_est)
-                    q_prev = q
-                    qd = v_est.copy()
-                else:
-                    qd = np.array(qvel[arm_v])
-                tau = law(k, q, qd)
-                if tau is None:
-                    return LoopRun(k, ticks)
-                ticks += 1
-                pending.append((k + latency, np.array(tau)))
-            while pending and pending[0][0] <= k:
-                ctrl[arm_u] = pending.popleft()[1]
-            step(m, d)
-            if hook is not None:
-                hook(d)
-            k += 1
+        Args:
+            robot: The models.
+            d: MuJoCo data, advanced in place; only the six arm actuators' controls are written.
+            setpoints: The controls of each step (n, 6) (rad): ``q_ref + (kd qd_ref + tau_ff) / kp``.
+            kp, kd: Servo stiffness (6,) (N m/rad) and damping (6,) (N m s/rad).
+            q_ref: Reference positions before each step and after the last (n + 1, 6) (rad).
+            max_error_sq: ``on_error`` is called when ``|q_ref - q|^2`` exceeds it (or is not finite).
+            on_error: ``on_error(k, e, tape)`` with the error (6,) before step ``k`` and the tape of the steps before
+                it (it may raise to abort).
+            hook: Called with ``d`` after every physics step; may raise to abort. A :class:`Measured` hook also
+                gets the tape.
+
+        Returns:
+            The tape (n, :data:`~pickplace.robot.model.ARM_STATE_WIDTH`): row ``k`` the arm's state at the start of
+            step ``k`` (positions, velocities, the torques applied during the step, the tcp).
+
+        Raises:
+            ConfigError: the loop is not the ideal one.
+        """
+        if not self.config.ideal:
+            raise ConfigError("loop", self.config, "joint servos run only in the ideal loop")
+        m, h = robot.mj, robot.handles
+        arm_q, arm_u = _selector(h.arm_qpos), _selector(h.arm_actuators)
+        n = len(setpoints)
+        step_hook, sink = (hook.step, hook.tape) if isinstance(hook, Measured) else (hook, None)
+        rows = np.empty((n, ARM_STATE_WIDTH))
+        a = h.arm_state_sensor
+        block = d.sensordata[a : a + ARM_STATE_WIDTH]
+        t0 = float(d.time)
+        q = d.qpos[arm_q]
+        ctrl = d.ctrl
+        step = mujoco.mj_step
+        taken = 0
+        try:
+            with ServoGains(m, h.arm_actuators, kp, kd):
+                for k in range(n):
+                    e = q_ref[k] - q
+                    if not e.dot(e) <= max_error_sq:  # (ndarray.dot: a quarter of the cost of @ here)
+                        on_error(k, e, rows[:k])
+                    ctrl[arm_u] = setpoints[k]
+                    step(m, d)
+                    rows[k] = block
+                    taken = k + 1
+                    if step_hook is not None:
+                        step_hook(d)
+                e = q_ref[n] - q
+                if not e.dot(e) <= max_error_sq:
+                    on_error(n, e, rows)
+        finally:
+            if sink is not None:
+                sink(rows[:taken], t0)
+        return rows
+
+
+#: Rows of the arm's state a loop whose length is not known ahead (:meth:`ControlLoop.run`) buffers before it hands
+#: them to its :class:`Measured` hook.
+TAPE_CHUNK = 512
+
+
+@dataclass(frozen=True)
+class Measured:
+    """A loop's hook that also measures the arm's motion: ``step(d)`` after every physics step (may raise), and
+    ``tape(rows, t0_s)`` with the arm's state block of the steps taken, in consecutive blocks as the loop runs and at
+    its end (also when it ends by a raise); the rows are valid during the call only.
+
+    The tape is MuJoCo's arm sensors (:data:`~pickplace.robot.model.ARM_STATE_FIELDS`), one row per physics step:
+    row ``k`` holds the state at the start of step ``k`` (positions, velocities, the tcp) and the torques the
+    actuators applied during it; ``t0_s`` is the simulated time (s) of the first row. Copying the block is one numpy
+    assignment per step; what is measured on it is computed per block.
+
+    Attributes:
+        step: Called with the data after every physics step, or None.
+        tape: Called with each block of rows (k, ARM_STATE_WIDTH) and its first row's time (s).
+    """
+
+    step: Hook | None
+    tape: Callable[[np.ndarray, float], None]
+
+
+class _Tape:
+    """The arm's state block copied after every step into a buffer handed to a :class:`Measured` hook when full."""
+
+    def __init__(self, robot: Robot, d: mujoco.MjData, sink: Callable[[np.ndarray, float], None], rows: int) -> None:
+        a = robot.handles.arm_state_sensor
+        self._block = d.sensordata[a : a + ARM_STATE_WIDTH]
+        self._rows = np.empty((rows, ARM_STATE_WIDTH))
+        self._n = 0
+        self._d, self._dt = d, float(robot.mj.opt.timestep)
+        self._t0 = float(d.time)
+        self._sink = sink
+
+    def record(self) -> None:
+        """Copy the block after a step."""
+        self._rows[self._n] = self._block
+        self._n += 1
+        if self._n == len(self._rows):
+            self.flush()
+
+    def flush(self) -> None:
+        """Hand the rows so far to the sink."""
+        if self._n:
+            self._sink(self._rows[: self._n], self._t0)
+            self._t0 += self._n * self._dt
+            self._n = 0
+
+
+def _split(hook: Hook | Measured | None, robot: Robot, d: mujoco.MjData, rows: int) -> tuple[Hook | None, _Tape | None]:
+    if isinstance(hook, Measured):
+        return hook.step, _Tape(robot, d, hook.tape, rows)
+    return hook, None
+
+
+class ServoGains:
+    """Turns the arm's actuators into joint servos for a block: MuJoCo applies ``kp (ctrl - q) - kd qd`` (clamped to
+    the torque limits) at every physics step, in C; restores pure torque actuators after.
+
+    The arm's actuators are ``general`` actuators with an affine bias: torque mode is gain 1 and bias 0
+    (``force = ctrl``), servo mode gain ``kp`` and bias ``-kp q - kd qd``.
+    """
+
+    def __init__(self, m: mujoco.MjModel, actuators: np.ndarray, kp: np.ndarray, kd: np.ndarray) -> None:
+        self.m, self.a, self.kp, self.kd = m, actuators, kp, kd
+
+    def __enter__(self) -> None:
+        m, a = self.m, self.a
+        m.actuator_gainprm[a, 0] = self.kp
+        m.actuator_biasprm[a, 1] = -self.kp
+        m.actuator_biasprm[a, 2] = -self.kd
+
+    def __exit__(self, *exc: object) -> None:
+        m, a = self.m, self.a
+        m.actuator_gainprm[a, 0] = 1.0
+        m.actuator_biasprm[a, 1] = 0.0
+        m.actuator_biasprm[a, 2] = 0.0
 
 
 def _selector(idx: np.ndarray) -> slice | np.ndarray:
@@ -290,4 +451,6 @@ __all__ = [
     "Law",
     "LoopConfig",
     "LoopRun",
+    "Measured",
+    "ServoGains",
 ]

@@ -42,6 +42,8 @@ ARM_JOINTS = (
 )
 #: The gripper's finger slides (the right one follows the left through an equality constraint).
 FINGER_JOINTS = ("left_finger_joint", "right_finger_joint")
+#: The arm's actuators, joints 1-6.
+ARM_ACTUATORS = ("shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3")
 #: Published UR5e torque limits (N m), joints 1-6 (UR5e technical specification).
 TORQUE_LIMITS_NM = np.array([150.0, 150.0, 150.0, 28.0, 28.0, 28.0])
 
@@ -117,6 +119,7 @@ def scene_spec(scene: SceneConfig) -> mujoco.MjSpec:
     robot = robot_spec()
     with quiet_attach():
         spec.worldbody.add_frame().attach_body(robot.body("base"), "", "")
+    _add_arm_sensors(spec)
 
     # Table: a 40 mm top whose upper face is at table_height_m, on four legs.
     top_half = 0.02
@@ -164,6 +167,9 @@ def scene_spec(scene: SceneConfig) -> mujoco.MjSpec:
                         size=[SEEN_CELL_M / 2, SEEN_CELL_M / 2, SEEN_HALF_HEIGHT_M], contype=0, conaffinity=0,
                         group=5, rgba=[1.0, 0.5, 0.0, 0.4])
 
+    for name in [OBJECT, *(other.name for other in scene.others)]:
+        _add_object_sensors(spec, name)
+
     if scene.obstacle:
         ox, oy = obstacle_xy(scene)
         wall = spec.worldbody.add_body(name="obstacle", pos=[ox, oy, scene.table_height_m
@@ -178,6 +184,69 @@ def scene_spec(scene: SceneConfig) -> mujoco.MjSpec:
     return spec
 
 
+#: The arm's sensors, in this order at the start of ``sensordata`` (:data:`ARM_STATE_WIDTH` values): the six joints'
+#: positions (rad), their velocities (rad/s), the torques their actuators applied (N m), then the tcp's position in
+#: the world (3,) (m). The control loops copy the block once per physics step (``motion.loop``).
+ARM_STATE_FIELDS = ("q", "qd", "tau", "tcp")
+ARM_STATE_WIDTH = 21
+
+
+def _add_arm_sensors(spec: mujoco.MjSpec) -> None:
+    """The arm's state block (:data:`ARM_STATE_FIELDS`), computed by MuJoCo at every step."""
+    kinds = ((mujoco.mjtSensor.mjSENS_JOINTPOS, mujoco.mjtObj.mjOBJ_JOINT, "q"),
+             (mujoco.mjtSensor.mjSENS_JOINTVEL, mujoco.mjtObj.mjOBJ_JOINT, "qd"),
+             (mujoco.mjtSensor.mjSENS_ACTUATORFRC, mujoco.mjtObj.mjOBJ_ACTUATOR, "tau"))
+    for kind, objtype, field_name in kinds:
+        for joint, actuator in zip(ARM_JOINTS, ARM_ACTUATORS, strict=True):
+            name = joint if objtype == mujoco.mjtObj.mjOBJ_JOINT else actuator
+            s = spec.add_sensor(name=f"arm_{field_name}_{name}", type=kind)
+            s.objtype, s.objname = objtype, name
+    s = spec.add_sensor(name="arm_tcp", type=mujoco.mjtSensor.mjSENS_FRAMEPOS)
+    s.objtype, s.objname = mujoco.mjtObj.mjOBJ_SITE, "tcp"
+    _add_contact_count(spec, "robot_contacts", (mujoco.mjtObj.mjOBJ_XBODY, "base"))
+
+
+#: A contact sensor's data fields (``mjtConDataField`` bits: found, force) and its reduction (net force of all the
+#: matching contacts), as MuJoCo's XML parser encodes ``data="found force" reduce="netforce"``.
+_CONTACT_FOUND_FORCE = (1 << int(mujoco.mjtConDataField.mjCONDATA_FOUND)) | (
+    1 << int(mujoco.mjtConDataField.mjCONDATA_FORCE))
+_REDUCE_NETFORCE = 3
+_CONTACT_FOUND = 1 << int(mujoco.mjtConDataField.mjCONDATA_FOUND)
+
+
+def _add_object_sensors(spec: mujoco.MjSpec, body: str) -> None:
+    """The sensors MuJoCo computes at every step for the object body ``body`` (read by the per-step checks in C's
+    time instead of Python's): the net force of each pad's contacts with it (``found`` then the force, 4 values
+    each: :func:`pickplace.robot.gripper.pad_load`), its origin in the tcp frame (3 values) and in the world (3
+    values), the number of its contacts, and the number of its contacts with the gripper (pads included)."""
+    for pad in PAD_GEOMS:
+        s = spec.add_sensor(name=f"{body}_{pad}", type=mujoco.mjtSensor.mjSENS_CONTACT)
+        s.objtype, s.objname = mujoco.mjtObj.mjOBJ_GEOM, pad
+        s.reftype, s.refname = mujoco.mjtObj.mjOBJ_BODY, body
+        s.intprm[:3] = [_CONTACT_FOUND_FORCE, _REDUCE_NETFORCE, 1]
+    s = spec.add_sensor(name=f"{body}_in_tcp", type=mujoco.mjtSensor.mjSENS_FRAMEPOS)
+    s.objtype, s.objname = mujoco.mjtObj.mjOBJ_BODY, body
+    s.reftype, s.refname = mujoco.mjtObj.mjOBJ_SITE, "tcp"
+    s = spec.add_sensor(name=f"{body}_position", type=mujoco.mjtSensor.mjSENS_FRAMEPOS)
+    s.objtype, s.objname = mujoco.mjtObj.mjOBJ_BODY, body
+    _add_contact_count(spec, f"{body}_contacts", (mujoco.mjtObj.mjOBJ_BODY, body))
+    _add_contact_count(spec, f"{body}_hand_contacts", (mujoco.mjtObj.mjOBJ_XBODY, "gripper_base"),
+                       (mujoco.mjtObj.mjOBJ_BODY, body))
+
+
+def _add_contact_count(spec: mujoco.MjSpec, name: str, first: tuple[mujoco.mjtObj, str],
+                       second: tuple[mujoco.mjtObj, str] | None = None) -> None:
+    """A sensor of the number of contacts between ``first`` and ``second`` (anything if None), each an object type
+    (``mjOBJ_BODY``: a body's geoms; ``mjOBJ_XBODY``: its subtree's) and a name."""
+    s = spec.add_sensor(name=name, type=mujoco.mjtSensor.mjSENS_CONTACT)
+    s.objtype, s.objname = first
+    if second is not None:
+        s.reftype, s.refname = second
+    s.intprm[:3] = [_CONTACT_FOUND, 0, 1]
+
+
+#: The pads' geoms, left then right.
+PAD_GEOMS = ("left_pad", "right_pad")
 #: Name of the object's body (its geoms are named after the object, see :func:`object_geom_names`).
 OBJECT = "object"
 #: Name of the bin's body; its floor geom is :data:`BIN_FLOOR` (a surface, like the table), its walls ``bin_wall_*``.
@@ -306,6 +375,25 @@ def obstacle_xy(scene: SceneConfig) -> tuple[float, float]:
     return scene.obstacle_centre_xy_m
 
 
+def arm_state_address(m: mujoco.MjModel) -> int:
+    """The ``sensordata`` address of the arm's state block (:data:`ARM_STATE_FIELDS`) in ``m``.
+
+    Raises:
+        ModelError: ``m`` lacks those sensors or they are not one contiguous block in that order.
+    """
+    names = [f"arm_{f}_{n}" for f, group in (("q", ARM_JOINTS), ("qd", ARM_JOINTS), ("tau", ARM_ACTUATORS))
+             for n in group] + ["arm_tcp"]
+    ids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, n) for n in names]
+    if min(ids) < 0:
+        missing = [n for n, i in zip(names, ids, strict=True) if i < 0]
+        raise ModelError(f"the model lacks the arm's state sensors {', '.join(missing)}")
+    adr = [int(m.sensor_adr[i]) for i in ids]
+    start = adr[0]
+    if adr != [start + k for k in range(18)] + [start + 18]:
+        raise ModelError("the arm's state sensors are not one contiguous block of sensordata")
+    return start
+
+
 @dataclass(frozen=True)
 class Handles:
     """Indices of the named elements the rest of the code needs, resolved once.
@@ -326,6 +414,14 @@ class Handles:
         pad_geoms: ids of the left and right pad geoms (2,).
         robot_bodies: ids of every body of the arm and the gripper.
         gripper_bodies: ids of the gripper's bodies (base and fingers).
+        arm_state_sensor: ``sensordata`` address of the arm's state block (:data:`ARM_STATE_FIELDS`).
+        pad_sensors: ``sensordata`` addresses of the object's contact sensors with the left and right pad (2,): each
+            ``found`` (contacts), then the net force (3,) the pad exerts on the object, world axes (N).
+        object_in_tcp_sensor: ``sensordata`` address of the object's origin in the tcp frame (3,) (m).
+        object_position_sensor: ``sensordata`` address of the object's origin in the world (3,) (m).
+        contact_count_sensors: ``sensordata`` addresses of three contact counts: the robot's (arm and gripper, with
+            anything), the object's (with anything), the gripper's with the object.
+        finger_joints: ids of the two finger slide joints (2,).
     """
 
     arm_qpos: np.ndarray
@@ -343,6 +439,12 @@ class Handles:
     pad_geoms: np.ndarray
     robot_bodies: frozenset[int]
     gripper_bodies: frozenset[int]
+    arm_state_sensor: int
+    pad_sensors: np.ndarray
+    object_in_tcp_sensor: int
+    object_position_sensor: int
+    contact_count_sensors: np.ndarray
+    finger_joints: np.ndarray
 
     @functools.cached_property
     def object_geom_set(self) -> frozenset[int]:
@@ -364,8 +466,8 @@ class Handles:
                 raise ModelError(f"the model has no {kind.name[6:].lower()} named '{name}'")
             return i
 
-        J, B, G, S, A = (mujoco.mjtObj.mjOBJ_JOINT, mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM,
-                         mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtObj.mjOBJ_ACTUATOR)
+        J, B, G, S, A, N = (mujoco.mjtObj.mjOBJ_JOINT, mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM,
+                            mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtObj.mjOBJ_ACTUATOR, mujoco.mjtObj.mjOBJ_SENSOR)
         arm = [find(J, n) for n in ARM_JOINTS]
         fingers = [find(J, n) for n in FINGER_JOINTS]
         object_id = find(B, object_body)
@@ -383,8 +485,7 @@ class Handles:
         return cls(
             arm_qpos=m.jnt_qposadr[arm].copy(),
             arm_dof=m.jnt_dofadr[arm].copy(),
-            arm_actuators=np.array([find(A, n) for n in
-                                    ("shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3")]),
+            arm_actuators=np.array([find(A, n) for n in ARM_ACTUATORS]),
             finger_qpos=m.jnt_qposadr[fingers].copy(),
             finger_dof=m.jnt_dofadr[fingers].copy(),
             gripper_actuator=find(A, "gripper"),
@@ -397,6 +498,14 @@ class Handles:
             pad_geoms=np.array([find(G, "left_pad"), find(G, "right_pad")]),
             robot_bodies=subtree(base),
             gripper_bodies=subtree(gripper_base),
+            arm_state_sensor=arm_state_address(m),
+            pad_sensors=np.array([m.sensor_adr[find(N, f"{object_body}_{pad}")] for pad in PAD_GEOMS]),
+            object_in_tcp_sensor=int(m.sensor_adr[find(N, f"{object_body}_in_tcp")]),
+            object_position_sensor=int(m.sensor_adr[find(N, f"{object_body}_position")]),
+            contact_count_sensors=np.array([m.sensor_adr[find(N, n)] for n in
+                                            ("robot_contacts", f"{object_body}_contacts",
+                                             f"{object_body}_hand_contacts")]),
+            finger_joints=np.array(fingers),
         )
 
 
@@ -414,7 +523,7 @@ class Robot:
         home_q: The arm's ``home`` keyframe (6,) (rad).
         arm_lower: Lower joint limits (6,) (rad).
         arm_upper: Upper joint limits (6,) (rad).
-        torque_limits_nm: Actuator torque limits (6,) (N m), read from the motors' ctrlrange.
+        torque_limits_nm: Actuator torque limits (6,) (N m), read from the actuators' forcerange.
         robot_mjcf: The robot MJCF that both engines were built from.
         world: The scene the MuJoCo model was built from, every object in it; None: ``scene``. A robot focused on
             one object of a task (:meth:`focus`) has that object's pick and place as its ``scene``.
@@ -488,7 +597,7 @@ def build(scene: SceneConfig | None = None) -> Robot:
         raise ModelError(f"Pinocchio built joints {tuple(pmodel.names)}, expected {expected}")
     home = m.key_qpos[0][handles.arm_qpos].copy()
     ranges = m.jnt_range[[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in ARM_JOINTS]]
-    torque = np.abs(m.actuator_ctrlrange[handles.arm_actuators, 1]).copy()
+    torque = np.abs(m.actuator_forcerange[handles.arm_actuators, 1]).copy()
     return Robot(
         scene=scene,
         mj=m,

@@ -38,7 +38,7 @@ from pickplace.motion import control
 from pickplace.motion.collision import CollisionChecker, CollisionPolicy
 from pickplace.motion.control import ControlConfig, Payload
 from pickplace.motion.limits import LimitMeter, LineMeter
-from pickplace.motion.loop import ControlLoop
+from pickplace.motion.loop import ControlLoop, Measured
 from pickplace.motion.planning import PlannerConfig, plan, segment_valid
 from pickplace.motion.timing import PathPart, TimingConfig, Trajectory, retime, retime_parts
 from pickplace.robot import gripper
@@ -105,6 +105,12 @@ ESCAPE_RESOLUTION_RAD = 0.001
 #: them away from what they are near (reaching far, it lowers the upper arm towards the table's edge).
 PROXIMAL_GEOMS = frozenset({"base_collision", "shoulder_collision", "upper_arm_joint_collision",
                             "upper_arm_collision", "elbow_collision", "forearm_collision"})
+
+
+#: The trajectory predictor checks the rest of the running trajectory again only when something in the world it
+#: checks against moved more than this since the last check found it clear (m, and quaternion components): resting
+#: objects settle by far less, an obstacle that appears or an object that is knocked moves by far more.
+WORLD_STILL = 1e-4
 
 
 class Arm:
@@ -199,24 +205,24 @@ class Arm:
         """Whether the trajectory has been run part of the way (the arm moves on along it)."""
         return self._trajectory is not None and 0 < self._next_part < len(self._trajectory.part_times_s) - 1
 
-    def step_hook(self, hook: control.Hook, moving: bool = True) -> control.Hook:
-        """``hook`` (the monitor, or a phase's hook that calls it) after measuring the step against the limits, the
-        arm told to move or (``moving`` False) to hold still, and the line being followed (:meth:`following`)."""
+    def step_hook(self, hook: control.Hook, moving: bool = True) -> Measured:
+        """``hook`` (the monitor, or a phase's hook that calls it) after every step, and the loop's tape of the arm's
+        state measured against the limits, the arm told to move or (``moving`` False) to hold still, and against the
+        line being followed (:meth:`following`)."""
         limits, monitor = self.limits, self.monitor
 
-        def step(d: mujoco.MjData) -> None:
-            limits(d, monitor.phase, moving)
+        def tape(rows: np.ndarray, t0_s: float) -> None:
+            limits.add(rows, t0_s, monitor.phase, moving)
             if self.line_meter is not None:
-                self.line_meter(d)
-            hook(d)
+                self.line_meter.add(rows)
 
-        return step
+        return Measured(hook, tape)
 
     @contextlib.contextmanager
     def following(self, start_m: np.ndarray, end_m: np.ndarray) -> Iterator[LineMeter]:
         """Measure how far the tcp strays from the straight line through ``start_m`` and ``end_m`` (3,) (m) in
         every step run inside the block (the meter's ``max_m``)."""
-        meter = LineMeter(self.robot, start_m, end_m)
+        meter = LineMeter(start_m, end_m)
         self.line_meter = meter
         try:
             yield meter
@@ -512,17 +518,31 @@ class Arm:
         traj, checker = self.trajectory, self.segment_checker
         assert traj is not None and checker is not None
         end = traj.duration_s if until_s is None else until_s
+        # what the check reads of the world: every body's pose but the arm's, the fingers' and a held object's (the
+        # checker carries it in the hand), and the mocap bodies
+        h = self.robot.handles
+        fixed = np.ones(self.robot.mj.nq, dtype=bool)
+        fixed[h.arm_qpos] = fixed[h.finger_qpos] = False
+        if checker.policy.object_held:
+            fixed[h.object_qpos : h.object_qpos + 7] = False
+        world_qpos = np.flatnonzero(fixed)
+        checked: list[np.ndarray] = []  # the world when the rest of the trajectory was last found clear
 
         def predictor(_: mujoco.MjData, t: float) -> None:
             ts = np.arange(max(t - t_start, from_s), end, 0.01)
             if ts.size == 0:
                 return
-            checker.set_world(self.observer.world())
+            world = self.observer.world()
+            now = np.concatenate((world.qpos[world_qpos], world.mocap_pos.ravel(), world.mocap_quat.ravel()))
+            if checked and float(np.max(np.abs(now - checked[0]))) <= WORLD_STILL:
+                return  # nothing moved since the rest of the trajectory (a superset of what is left) was found clear
+            checker.set_world(world)
             qs, _, _ = traj.sample_many(ts)
             if not checker.all_valid(qs):
                 valid = checker.are_valid(qs)
                 k = int(np.argmin(valid))
                 raise CollisionPredicted(checker.colliding_pairs(qs[k]), t, float(ts[k] - ts[0]))
+            checked[:] = [now]
 
         return predictor
 

@@ -72,7 +72,10 @@ class StepMonitor:
     :class:`ObjectMoved`, or whatever the trajectory predictor raises. The state machine switches the
     checks on and off as the phases require (``allow_*``, ``holding``, ``watching``, ``predictor``).
 
-    The contact check runs every step but looks at the contacts only when their geom pairs differ from those it
+    The contact check runs every step. It reads MuJoCo's contact counts first (the robot's, the object's and the
+    gripper's with the object: :mod:`pickplace.robot.model`): when every contact of the robot is the gripper's with
+    the object while that is allowed (or there is none), and a held object touches nothing but the gripper, every
+    contact is allowed. Otherwise it looks at the contacts, but only when their geom pairs differ from those it
     last found allowed, or a flag that decides what is allowed (``allow_hand_object``, ``object_falling``,
     ``allow_object_table``, ``holding``) was set to a new value since; it then compares each pair's classes against
     a table of :meth:`allowed` made once per change of the flags.
@@ -113,6 +116,7 @@ class StepMonitor:
         cls[surface_geoms(m, world, robot.scene)] = _TABLE  # the bin's floor, a tower's top: like the table
         cls[h.object_geoms] = _OBJECT
         self.cls = cls
+        self._count_robot, self._count_object, self._count_hand = (int(a) for a in h.contact_count_sensors)
         self._allowed_table: np.ndarray | None = None  # allowed(a, b) for every pair of classes, under the flags now
         self._ok_contacts = b""  # the contacts' geom pairs last found allowed under the flags now
         self._allow_hand_object = False  # gripper/pads touching the object
@@ -200,13 +204,18 @@ class StepMonitor:
             self.recorder.record(d, self.t, self.phase)
         n = d.ncon
         if n and not self.tolerate_contacts:
-            geoms = d.contact.geom[:n]
-            key = geoms.tobytes()
-            if key != self._ok_contacts:  # the contacts changed since they were last found allowed
-                self._check_contacts(geoms)
-                self._ok_contacts = key
+            # MuJoCo's contact counts first (robot.model): every contact of the robot is the gripper's with the object
+            # and that is allowed, or there is none; the held object touches nothing but the gripper (the usual case)
+            sd = d.sensordata
+            hand = sd[self._count_hand]
+            if not (sd[self._count_robot] == (hand if self._allow_hand_object else 0.0)
+                    and (not self._holding or sd[self._count_object] == hand) and not self._object_falling):
+                key = d.contact.geom[:n].tobytes()
+                if key != self._ok_contacts:  # the contacts changed since they were last found allowed
+                    self._check_contacts(d.contact.geom[:n])
+                    self._ok_contacts = key
         if self._holding:
-            sense = self._sense(d)
+            sense = self.observer if self.observer is not None else self._sense(d)
             slip = sense.slip_m()
             self.slip_now_m = slip
             if slip > self.slip_max_m:
@@ -218,14 +227,15 @@ class StepMonitor:
             if lost is not None:
                 raise GraspFailed(f"{lost} at t = {self.t:.3f} s: it is no longer held")
         if self.watching:
-            moved = self._sense(d).moved_m()
+            moved = (self.observer if self.observer is not None else self._sense(d)).moved_m()
             if moved > self.watch_tolerance_m:
                 self.watching = False
                 raise ObjectMoved(f"the {self.name} moved {moved * 1e3:.1f} mm from where it was observed "
                                   f"(t = {self.t:.3f} s)")
-        self._steps += 1
-        if self.predictor is not None and self._steps % self.predict_every == 0:
-            self.predictor(d, self.t)
+        if self.predictor is not None:
+            self._steps += 1
+            if self._steps % self.predict_every == 0:
+                self.predictor(d, self.t)
         if self._inject:
             self._injector.step(d, self.phase, self.t)  # type: ignore[union-attr]
 

@@ -166,6 +166,16 @@ class SimulatorObserver:
         self._tcp = h.tcp_site
         self._observed_at = np.zeros(3)
         self._p_tcp_object0 = np.zeros(3)
+        self._in_tcp_now = np.zeros(3)
+        # MuJoCo's sensors of the object, computed in every step (robot.model): its origin in the tcp frame, and the
+        # net force of each pad on it (world axes); the left finger's slide axis (the pads' normal)
+        a = h.object_in_tcp_sensor
+        self._in_tcp = slice(a, a + 3)
+        b = h.object_position_sensor
+        self._position = data.sensordata[b : b + 3]  # a view: it follows the simulation
+        self._pad_force = [slice(int(b) + 1, int(b) + 4) for b in h.pad_sensors]
+        self._finger = int(h.finger_joints[0])
+        self._g = float(-robot.mj.opt.gravity[2])
 
     def observe(self, near: pin.SE3 | None = None) -> pin.SE3:
         """The object's pose (exact, wherever it is)."""
@@ -187,7 +197,8 @@ class SimulatorObserver:
 
     def moved_m(self) -> float:
         """Distance of the object's origin from where it was observed (m)."""
-        return float(np.linalg.norm(self.object_position() - self._observed_at))
+        e = self._position - self._observed_at
+        return math.sqrt(e.dot(e))
 
     def object_velocity(self) -> np.ndarray:
         """The free joint's velocity (6,): linear (world) then angular (m/s, rad/s)."""
@@ -214,10 +225,16 @@ class SimulatorObserver:
         return gripper.pad_contacts(self.robot, self.d)
 
     def load_sample(self) -> tuple[float, float, float]:
-        """The pads' normal forces and vertical force on the object, and g plus its vertical acceleration."""
-        normal, f = gripper.pad_load(self.robot, self.d)
-        g = float(-self.robot.mj.opt.gravity[2])
-        return float(normal.sum()), float(f[2]), g + float(self.d.qacc[self._dof + 2])
+        """The pads' normal forces and vertical force on the object, and g plus its vertical acceleration.
+
+        Read from MuJoCo's contact sensors of the pads (the net force of each pad's contacts with the object): a
+        pad's normal force is its net force along the fingers' axis (the pads' faces are normal to it).
+        """
+        sd = self.d.sensordata
+        left, right = sd[self._pad_force[0]], sd[self._pad_force[1]]
+        axis = self.d.xaxis[self._finger]
+        normal = abs(float(left.dot(axis))) + abs(float(right.dot(axis)))
+        return normal, float(left[2] + right[2]), self._g + float(self.d.qacc[self._dof + 2])
 
     def airborne(self, z0_m: float, mass_kg: float) -> bool:
         """The object's origin is 3 mm above where it rested."""
@@ -236,16 +253,18 @@ class SimulatorObserver:
         return load < (1.0 - TOUCH_DOWN_FRACTION) * mass_kg * g_plus_a
 
     def _p_tcp_object(self) -> np.ndarray:
-        R = self.d.site_xmat[self._tcp].reshape(3, 3)
-        return R.T @ (self.object_position() - self.d.site_xpos[self._tcp])
+        """The object's origin in the tcp frame (3,) (m): MuJoCo's sensor of it (robot.model)."""
+        return self.d.sensordata[self._in_tcp]
 
     def start_holding(self) -> None:
         """The object's position in the tcp frame now is the reference."""
-        self._p_tcp_object0 = self._p_tcp_object()
+        self._in_tcp_now = self._p_tcp_object()  # a view of the sensor: it follows the simulation
+        self._p_tcp_object0 = self._in_tcp_now.copy()
 
     def slip_m(self) -> float:
         """Motion of the object's origin in the tcp frame since :meth:`start_holding` (m)."""
-        return float(np.linalg.norm(self._p_tcp_object() - self._p_tcp_object0))
+        e = self._in_tcp_now - self._p_tcp_object0
+        return math.sqrt(e.dot(e))
 
     def expect_load(self, mass_kg: float | None) -> None:
         """Nothing to do: slip is measured on the object itself."""

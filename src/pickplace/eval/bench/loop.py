@@ -38,6 +38,7 @@ import mujoco
 import numpy as np
 
 from pickplace.eval.bench import machine_info
+from pickplace.motion import control as control_module
 from pickplace.motion import loop as loop_module
 from pickplace.motion.loop import ControlLoop
 from pickplace.task.episode import EpisodeConfig, EpisodeResult, run_episode
@@ -85,7 +86,9 @@ class Tape:
         model: The model stepped.
         start: A copy of the data before the first step.
         ctrl: The controls of every step (steps, nu).
-        changes: ``{step: (xfrc_applied, mocap_pos, mocap_quat)}`` at the steps where one of them changed.
+        changes: ``{step: (xfrc_applied, mocap_pos, mocap_quat, actuator_gainprm, actuator_biasprm)}`` at the steps
+            where one of them changed (the gains: the arm's actuators switched between torque motors and joint
+            servos, :class:`~pickplace.motion.loop.ServoGains`).
         final_qpos: ``qpos`` after the last step.
         final_qvel: ``qvel`` after the last step.
         other_models: Steps taken on another model than ``model`` (the replay cannot reproduce them).
@@ -94,11 +97,11 @@ class Tape:
     model: mujoco.MjModel | None = None
     start: mujoco.MjData | None = None
     ctrl: list[np.ndarray] = field(default_factory=list)
-    changes: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=dict)
+    changes: dict[int, tuple[np.ndarray, ...]] = field(default_factory=dict)
     final_qpos: np.ndarray | None = None
     final_qvel: np.ndarray | None = None
     other_models: int = 0
-    _last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    _last: tuple[np.ndarray, ...] | None = None
 
     def step(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
         """Record what step ``len(self.ctrl)`` applies, then take it."""
@@ -106,10 +109,10 @@ class Tape:
             self.model, self.start = m, copy.copy(d)
         elif m is not self.model:
             self.other_models += 1
-        now = (d.xfrc_applied, d.mocap_pos, d.mocap_quat)
+        now = (d.xfrc_applied, d.mocap_pos, d.mocap_quat, m.actuator_gainprm, m.actuator_biasprm)
         if self._last is None or any(not np.array_equal(a, b) for a, b in zip(now, self._last, strict=True)):
-            self._last = tuple(a.copy() for a in now)  # type: ignore[assignment]
-            self.changes[len(self.ctrl)] = self._last  # type: ignore[assignment]
+            self._last = tuple(a.copy() for a in now)
+            self.changes[len(self.ctrl)] = self._last
         self.ctrl.append(d.ctrl.copy())
         mujoco.mj_step(m, d)
         self.final_qpos, self.final_qvel = d.qpos.copy(), d.qvel.copy()
@@ -142,22 +145,30 @@ def taped() -> Iterator[Tape]:
 
 @contextlib.contextmanager
 def loop_timer() -> Iterator[list[float]]:
-    """Within the block, the wall time (s) spent in :meth:`ControlLoop.run` adds up in the one-element list."""
+    """Within the block, the wall time (s) spent in the control loops adds up in the one-element list: in
+    :meth:`ControlLoop.run` and :meth:`ControlLoop.run_servo` (law, monitor, telemetry and physics) and in
+    :func:`~pickplace.motion.control.servo_setpoints` (the joint servos' setpoints: the law's work done ahead)."""
     total = [0.0]
-    run = ControlLoop.run
+    saved = [(ControlLoop, "run"), (ControlLoop, "run_servo"), (control_module, "servo_setpoints")]
+    originals = [getattr(owner, name) for owner, name in saved]
 
-    def timed(self: ControlLoop, *args: Any, **kwargs: Any) -> Any:
-        t0 = time.perf_counter()
-        try:
-            return run(self, *args, **kwargs)
-        finally:
-            total[0] += time.perf_counter() - t0
+    def timed(f: Callable[..., Any]) -> Callable[..., Any]:
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
+            t0 = time.perf_counter()
+            try:
+                return f(*args, **kwargs)
+            finally:
+                total[0] += time.perf_counter() - t0
 
-    ControlLoop.run = timed  # type: ignore[method-assign]
+        return wrapper
+
+    for (owner, name), f in zip(saved, originals, strict=True):
+        setattr(owner, name, timed(f))
     try:
         yield total
     finally:
-        ControlLoop.run = run  # type: ignore[method-assign]
+        for (owner, name), f in zip(saved, originals, strict=True):
+            setattr(owner, name, f)
 
 
 def replay(tape: Tape) -> tuple[float, mujoco.MjData]:
@@ -166,13 +177,18 @@ def replay(tape: Tape) -> tuple[float, mujoco.MjData]:
     assert tape.model is not None and tape.start is not None
     m, d = tape.model, copy.copy(tape.start)
     ctrl, changes, step = d.ctrl, tape.changes, mujoco.mj_step
+    gains = m.actuator_gainprm.copy(), m.actuator_biasprm.copy()
     t0 = time.perf_counter()
     for k, u in enumerate(tape.ctrl):
         if k in changes:
-            d.xfrc_applied[:], d.mocap_pos[:], d.mocap_quat[:] = changes[k]
+            xfrc, mocap_pos, mocap_quat, gain, bias = changes[k]
+            d.xfrc_applied[:], d.mocap_pos[:], d.mocap_quat[:] = xfrc, mocap_pos, mocap_quat
+            m.actuator_gainprm[:], m.actuator_biasprm[:] = gain, bias
         ctrl[:] = u
         step(m, d)
-    return time.perf_counter() - t0, d
+    wall = time.perf_counter() - t0
+    m.actuator_gainprm[:], m.actuator_biasprm[:] = gains
+    return wall, d
 
 
 # --------------------------------------------------------------------------- #
