@@ -142,3 +142,18 @@ def test_scenes_can_be_chosen_and_unknown_ones_are_refused(capsys: pytest.Captur
     with pytest.raises(SystemExit):
         bench.main(["--scenes", "kitchen"])
     assert "choose from default, obstacle, shelf, cage, bins, slot" in capsys.readouterr().err
+
+
+def test_anytime_planners_run_after_the_others_and_the_first_planner_rotates() -> None:
+    """The planners that stop at their first solution take turns, the first rotating from seed to seed, and the RRT*
+    rows (which spend their whole budget and fill the caches) run after them, so that no planner always follows
+    them."""
+    runners = [(spec, spec.name) for spec in (bench.PICKPLACE, *bench.OMPL_PLANNERS)]
+    groups = bench.query_groups(runners)  # type: ignore[arg-type]
+    assert [[spec.name for spec, _ in g] for g in groups] == [
+        ["pickplace", "ompl-rrtconnect", "ompl-rrtconnect-box"], ["ompl-rrtstar", "ompl-rrtstar-box"]]
+    firsts = [bench.rotated(groups[0], seed)[0][0].name for seed in range(6)]
+    assert firsts == ["pickplace", "ompl-rrtconnect", "ompl-rrtconnect-box"] * 2
+    assert all(sorted(s.name for s, _ in bench.rotated(groups[0], seed)) == sorted(s.name for s, _ in groups[0])
+               for seed in range(6))
+    assert bench.query_groups(runners[:1]) == [runners[:1]]  # --no-ompl: pickplace alone

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import logging
 import math
 from dataclasses import replace
 
@@ -232,6 +233,28 @@ def test_shortcut_keeps_needed_corner_and_never_increases_cost() -> None:
     assert path_cost(out) <= path_cost(detour)
     assert len(out) == 4  # the collinear waypoints go; the two corners around the block stay
     assert_truly_valid(world, out)
+
+
+def test_lazy_shortcuts_past_a_wall_thinner_than_the_coarse_spacing_are_caught_at_the_resolution(
+        caplog: pytest.LogCaptureFixture) -> None:
+    """A wall 0.015 rad thick, thinner than the 0.08 rad of the coarse check, stands inside the corner of a path
+    that goes over it: shortcuts across the corner pass the coarse check, fail when the result is completed at 0.01
+    rad, and are redone; the path returned keeps over the wall (truly valid), and its cost does not grow."""
+    world = BoxWorld([("thin", [0.995, -2.0], [1.01, 0.9])])
+    corner = np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 0.0]])
+    caplog.set_level(logging.DEBUG, logger="pickplace.motion.planning")
+    for seed in range(5):
+        world.checked = 0
+        out = shortcut(world, corner, PlannerConfig(shortcut_iterations=30), np.random.default_rng(seed))
+        assert path_cost(out) <= path_cost(corner)
+        assert_truly_valid(world, out)
+        top = out[np.argmin(np.abs(out[:, 0] - 1.0))]
+        assert top[1] > 0.9  # (the wall's top)
+    assert "failed at the resolution" in caplog.text  # the coarse check let a shortcut through; the completion not
+    coarse_only = BoxWorld([("thin", [0.995, -2.0], [1.01, 0.9])])
+    qa, qb = np.array([0.5, 0.5]), np.array([1.5, 0.5])  # crosses the wall: 100 steps; coarse points every 8
+    assert not segment_valid(coarse_only, qa, qb, 0.01)
+    assert coarse_only.are_valid(qa + np.arange(0, 101, 8)[:, None] / 100 * (qb - qa)).all()
 
 
 def test_segment_and_path_valid_detect_thin_wall() -> None:

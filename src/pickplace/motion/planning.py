@@ -10,9 +10,11 @@ vectorised; edge checks go through the checker's batch call, coarse to fine (bis
 :func:`plan` tries the straight segment, then (default, ``PlannerConfig.search = "connect"``) grows two trees, one
 from each end, the RRT-Connect way, checking only their nodes; where they meet, the path through them is pulled
 taut (:func:`pull`), which checks just the segments it keeps and cuts an invalid edge out of its tree (the search
-then goes on). Random shortcuts and a greedy waypoint removal then shorten it (:func:`shortcut`). Collision checks
-are the cost: a valid segment costs its full length in checks, a blocked one usually a few, so the checks are
-spent on the segments of the returned path and on cheap rejections. ``search = "rrtstar"`` (or
+then goes on). Random shortcuts and a greedy waypoint removal then shorten it (:func:`shortcut`), lazily: each
+candidate is checked coarsely (every :data:`_COARSE_GAP` steps of the resolution), and only the segments of the
+result are then checked at the resolution (a failure there is remembered and the shortcutting redone). Collision
+checks are the cost: a valid segment costs its full length in checks, a blocked one usually a few, so the checks
+are spent on the segments of the returned paths and on cheap rejections. ``search = "rrtstar"`` (or
 ``stop_at_first_solution = False``, the anytime mode) grows an RRT* tree from the start instead.
 
 Every returned path is valid at the stated resolution: along each of its segments, configurations checked valid
@@ -254,6 +256,33 @@ def _fractions(steps: int) -> np.ndarray:
     return out
 
 
+@functools.lru_cache(maxsize=4096)
+def _coarse_count(steps: int, gap: int) -> int:
+    """How many of the interior points of a segment of ``steps`` steps, taken in coarse-to-fine order
+    (:func:`_fractions` after its two ends), it takes until no two neighbouring checked points (ends included) are
+    more than ``gap`` steps apart."""
+    if steps <= gap:
+        return 0
+    checked = np.zeros(steps + 1, dtype=bool)
+    order = _coarse_to_fine(steps + 1)
+    lo = hi = 2
+    while hi < len(order):  # bisect on the prefix length: the widest gap only shrinks as points are added
+        checked[:] = False
+        checked[order[:hi]] = True
+        if int(np.diff(np.flatnonzero(checked)).max()) <= gap:
+            break
+        lo, hi = hi, min(len(order), 2 * hi)
+    while lo < hi:
+        mid = (lo + hi) // 2
+        checked[:] = False
+        checked[order[:mid]] = True
+        if int(np.diff(np.flatnonzero(checked)).max()) <= gap:
+            hi = mid
+        else:
+            lo = mid + 1
+    return hi - 2
+
+
 def segment_valid(checker: ValidityChecker, qa: np.ndarray, qb: np.ndarray, resolution_rad: float) -> bool:
     """Whether the straight joint-space segment qa (n,) -> qb (n,) is valid, both ends included.
 
@@ -339,11 +368,15 @@ def sampling_bounds(start: np.ndarray, goal: np.ndarray, lower: np.ndarray, uppe
 
 
 def _search(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-            cfg: PlannerConfig, rng: np.random.Generator, t0: float) -> tuple[np.ndarray, int, int]:
-    """The configured tree search from start to goal. Returns (tree path (K, n), iterations used, tree size)."""
+            cfg: PlannerConfig, rng: np.random.Generator, t0: float
+            ) -> tuple[np.ndarray, np.ndarray, int, int, float]:
+    """The configured tree search from start to goal, then shortcutting. Returns (tree path (K, n), shortcut path
+    (L, n), iterations used, tree size, end of the search (``time.perf_counter``))."""
     if cfg.search == "connect" and cfg.stop_at_first_solution:
         return _rrt_connect(checker, start, goal, lo, hi, cfg, rng, t0)
-    return _rrt_star(checker, start, goal, lo, hi, cfg, rng, t0)
+    raw, used, n = _rrt_star(checker, start, goal, lo, hi, cfg, rng, t0)
+    t1 = time.perf_counter()
+    return raw, shortcut(checker, raw, cfg, rng), used, n, t1
 
 
 def _rrt_star(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray, lo: np.ndarray, hi: np.ndarray,
@@ -448,34 +481,31 @@ def _first_invalid(checker: ValidityChecker, qs: np.ndarray) -> int:
 
 
 class _Tree:
-    """One tree of the bidirectional search: nodes (rad), parents, which nodes are still in the tree, and which
-    edges (node -> parent) have been checked at the edge resolution. Arrays grow by doubling."""
+    """One tree of the bidirectional search: nodes (rad) in an array that grows by doubling (cut nodes sit at
+    infinity), parents and children in lists."""
 
     def __init__(self, root: np.ndarray, capacity: int) -> None:
-        d = root.size
-        self.nodes = np.empty((capacity, d))
-        self.parent = np.full(capacity, -1, dtype=np.int64)
-        self.alive = np.zeros(capacity, dtype=bool)
-        self.checked = np.zeros(capacity, dtype=bool)
-        self.nodes[0], self.alive[0], self.checked[0] = root, True, True
+        self.nodes = np.empty((capacity, root.size))
+        self.nodes[0] = root
+        self.parent: list[int] = [-1]
+        self.children: list[list[int]] = [[]]
         self.n = 1
 
     def nearest(self, q: np.ndarray) -> tuple[int, float]:
-        """(index, L2 distance) of the live node nearest to q (n,) (cut nodes sit at infinity)."""
+        """(index, L2 distance) of the live node nearest to q (n,)."""
         diff = self.nodes[: self.n] - q
         d2 = np.einsum("ij,ij->i", diff, diff)
-        i = int(np.argmin(d2))
+        i = int(d2.argmin())
         return i, math.sqrt(d2[i])
 
     def add(self, q: np.ndarray, parent: int) -> int:
         if self.n == len(self.nodes):
-            grow = len(self.nodes)
             self.nodes = np.vstack([self.nodes, np.empty_like(self.nodes)])
-            self.parent = np.concatenate([self.parent, np.full(grow, -1, dtype=np.int64)])
-            self.alive = np.concatenate([self.alive, np.zeros(grow, dtype=bool)])
-            self.checked = np.concatenate([self.checked, np.zeros(grow, dtype=bool)])
         i = self.n
-        self.nodes[i], self.parent[i], self.alive[i], self.checked[i] = q, parent, True, False
+        self.nodes[i] = q
+        self.parent.append(parent)
+        self.children.append([])
+        self.children[parent].append(i)
         self.n += 1
         return i
 
@@ -483,58 +513,55 @@ class _Tree:
         """Node indices from node i up to the root."""
         out = [i]
         while out[-1] != 0:
-            out.append(int(self.parent[out[-1]]))
+            out.append(self.parent[out[-1]])
         return out
 
     def cut(self, i: int) -> int:
         """Remove node i and everything below it; returns how many nodes went."""
-        gone = np.zeros(self.n, dtype=bool)
-        frontier = np.array([i])
-        while frontier.size:
-            gone[frontier] = True
-            frontier = np.flatnonzero(np.isin(self.parent[: self.n], frontier) & ~gone)
-        self.alive[: self.n] &= ~gone
-        self.nodes[: self.n][gone] = np.inf  # out of every nearest-node query (no live node refers to them)
-        return int(gone.sum())
+        self.children[self.parent[i]].remove(i)
+        gone, stack = [], [i]
+        while stack:
+            k = stack.pop()
+            gone.append(k)
+            stack.extend(self.children[k])
+            self.children[k] = []
+        self.nodes[gone] = np.inf  # out of every nearest-node query (no live node refers to them)
+        return len(gone)
 
 
-def _edge_points(qa: np.ndarray, qb: np.ndarray, res: float, depth: int | None = None) -> np.ndarray:
-    """The configurations strictly between qa (n,) and qb (n,) that a check at ``res`` visits (those of
-    :func:`segment_valid` without the two ends), coarse to fine (bisection order), the first ``depth`` of them if
-    given; (m, n), possibly m = 0."""
-    delta = qb - qa
-    steps = math.ceil(float(np.abs(delta).max()) / res)
-    if steps <= 1:
-        return np.empty((0, qa.size))
-    return qa + _fractions(steps)[2:][:depth] * delta
-
-
-def _first_invalid_edge(checker: ValidityChecker, edges: list[tuple[np.ndarray, np.ndarray]], res: float,
-                        depth: int | None = None) -> int:
-    """Check the edges (qa, qb) (ends already valid) at ``res``, all at once and coarse to fine across them: each
-    edge's midpoint first, then its quarter points, and so on, so that a blocked edge anywhere on a path shows
-    after few checks; only the first ``depth`` points of each edge if given. Returns the index of the first edge
-    found invalid, or -1 if none was."""
-    pts = [_edge_points(a, b, res, depth) for a, b in edges]
-    if not any(len(p) for p in pts):
+def _first_invalid_midpoint(checker: ValidityChecker, path: np.ndarray, edges: list[int], res: float) -> int:
+    """Check the first point that a check at ``res`` visits inside each of the given edges of path (K, n) (the
+    midpoint, as :func:`_fractions` orders them: step ``steps // 2`` of ``steps``), all in one batch, stopping at the
+    first invalid one. Returns the index into ``edges`` of the edge found invalid, or -1."""
+    if not edges:
         return -1
-    rank = np.concatenate([np.arange(len(p)) for p in pts])
-    owner = np.concatenate([np.full(len(p), e) for e, p in enumerate(pts)])
-    order = np.argsort(rank, kind="stable")  # round robin over the edges, each in its coarse-to-fine order
-    bad = _first_invalid(checker, np.vstack(pts)[order])
-    return -1 if bad < 0 else int(owner[order[bad]])
+    qa = path[edges]
+    delta = path[np.add(edges, 1)] - qa
+    steps = np.ceil(np.abs(delta).max(axis=1) / res)
+    inner = np.flatnonzero(steps > 1)  # (an edge of one step has no interior)
+    if inner.size == 0:
+        return -1
+    half = (np.floor(steps[inner] / 2) / steps[inner])[:, None]
+    bad = _first_invalid(checker, qa[inner] + half * delta[inner])
+    return -1 if bad < 0 else int(inner[bad])
 
 
 def _rrt_connect(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-                 cfg: PlannerConfig, rng: np.random.Generator, t0: float) -> tuple[np.ndarray, int, int]:
-    """Bidirectional RRT-Connect with lazy edge checking. Returns (path (K, n), iterations used, nodes of both trees).
+                 cfg: PlannerConfig, rng: np.random.Generator, t0: float
+                 ) -> tuple[np.ndarray, np.ndarray, int, int, float]:
+    """Bidirectional RRT-Connect with lazy edge checking, then the path pulled taut and shortcut.
 
     Each iteration extends one tree by one step towards a sample and then greedily extends the other tree, step
     after step, towards the new node (Kuffner & LaValle 2000), the two trees taking turns. Only the new nodes
-    are checked while the trees grow. When the trees meet, the midpoints of the path's unchecked edges are checked
-    first (all together); then :func:`pull` makes the path taut, checking at ``edge_resolution_rad`` the segments
-    it keeps. An edge found invalid is cut out of its tree with everything below it, and the search goes on (as
-    LazyRRT / LazyPRM do). Edges found valid are not checked again.
+    are checked while the trees grow. When the trees meet, the midpoints of the path's edges not looked at yet are
+    checked first (all together); then :func:`_pull_and_shortcut` makes the path taut and shortcuts it, checking
+    the candidate segments coarsely and those it keeps at ``edge_resolution_rad``. An edge found invalid is cut
+    out of its tree with everything below it, and the search goes on (as LazyRRT / LazyPRM do). What is known
+    about a segment is kept for the next meeting (:class:`_Segments`).
+
+    Returns:
+        (taut path (K, n), shortcut path (L, n), iterations used, nodes of both trees, when the trees met for the
+        last time (``time.perf_counter``)).
     """
     d = start.size
     lo, hi = sampling_bounds(start, goal, lo, hi, cfg)
@@ -543,6 +570,8 @@ def _rrt_connect(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray, 
     step, res = cfg.step_size_rad, cfg.edge_resolution_rad
     samples = np.empty((0, d))
     used = 0
+    segs = _Segments(checker, res, _COARSE_GAP)
+    draws = np.sort(rng.random((cfg.shortcut_iterations, 2)), axis=1)  # the shortcuts', drawn before the samples
 
     def extend(tree: _Tree, i: int, target: np.ndarray, dist: float) -> tuple[int, bool]:
         """One step from node i towards target: (new node or -1 if its configuration is invalid, target reached)."""
@@ -578,38 +607,107 @@ def _rrt_connect(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray, 
             j, dist = j_new, math.dist(target, other.nodes[j_new])
         if not reached:
             continue
-        # The trees meet at target. Pull the path through them taut, checking segments at the edge resolution;
-        # a path edge that is itself invalid is cut out of its tree with everything below it.
+        # The trees meet at target. Pull the path through them taut and shortcut it, lazily (the candidate segments
+        # checked coarsely, those of the result then at the edge resolution); a path edge that is itself invalid
+        # is cut out of its tree with everything below it.
         a, b = (grow.chain(new), other.chain(j)) if grow is trees[0] else (other.chain(j), grow.chain(new))
         a = a[::-1]  # start tree: root .. meeting node; goal tree b: meeting node .. root
         path = np.vstack([trees[0].nodes[a], trees[1].nodes[b[1:]]])
-        known = [bool(trees[0].checked[c]) for c in a[1:]] + [bool(trees[1].checked[c]) for c in b[:-1]]
-        # First the midpoint of every unchecked edge: a path through an obstacle is usually given away by one, for
-        # a few checks, before pulling spends full checks on segments that would be thrown away with it.
-        unchecked = [e for e in range(len(known)) if not known[e]]
-        bad = _first_invalid_edge(checker, [(path[e], path[e + 1]) for e in unchecked], res, depth=1)
+        # First the midpoint of every edge not looked at yet: a path through an obstacle is usually given away by
+        # one, for a few checks, before pulling spends checks on segments that would be thrown away with it.
+        fresh = [e for e in range(len(path) - 1) if not segs.started(path[e], path[e + 1])]
+        bad = _first_invalid_midpoint(checker, path, fresh, res)
         if bad >= 0:
-            e = unchecked[bad]
+            e = fresh[bad]
             tree, c = (trees[0], a[e + 1]) if e + 1 < len(a) else (trees[1], b[e + 1 - len(a)])
             tree.cut(c)
             continue
+        for e in fresh:
+            segs.note(path[e], path[e + 1], 1)
+        t_met = time.perf_counter()
         # (start -> goal is the segment plan() found blocked)
-        pulled, bad, valid_edges = pull(checker, path, res, known, blocked={(0, len(path) - 1)})
-        for e in valid_edges:  # remember the path edges found valid, for the next meeting
-            tree, c = (trees[0], a[e + 1]) if e + 1 < len(a) else (trees[1], b[e + 1 - len(a)])
-            tree.checked[c] = True
-        if pulled is None:
+        taut, short, bad = _pull_and_shortcut(segs, path, cfg, draws, blocked={(0, len(path) - 1)})
+        if taut is None or short is None:
             tree, c = (trees[0], a[bad + 1]) if bad + 1 < len(a) else (trees[1], b[bad + 1 - len(a)])
             tree.cut(c)
             continue
-        logger.debug("RRT-Connect: path at iteration %d, %d -> %d waypoints, trees of %d + %d nodes", used,
-                     len(path), len(pulled), trees[0].n, trees[1].n)
-        return pulled, used, trees[0].n + trees[1].n
+        logger.debug("RRT-Connect: path at iteration %d, %d -> %d -> %d waypoints, trees of %d + %d nodes", used,
+                     len(path), len(taut), len(short), trees[0].n, trees[1].n)
+        return taut, short, used, trees[0].n + trees[1].n, t_met
     raise SearchExhausted(
         f"RRT-Connect found no path after {used} of {cfg.iterations} iterations in "
         f"{time.perf_counter() - t0:.3f} s (budget {cfg.time_budget_s:g} s), trees of {trees[0].n} + "
         f"{trees[1].n} nodes"
     )
+
+
+class _Segments:
+    """What is known about the straight segments between valid configurations at one resolution: for each, how many
+    of its interior points (in coarse-to-fine order, :func:`_fractions`) were found valid, or that it is blocked.
+
+    Lazy checking rests on it: a candidate segment is first checked only coarsely (:meth:`check` with
+    ``coarse=True``: its points up to a spacing of ``coarse_gap`` steps), and the segments of the final path are
+    then completed (:meth:`complete`). A segment checked coarsely and later dropped cost only its coarse points; a
+    segment completed later is never checked twice at a point. Keys are the two ends' bytes, in order.
+    """
+
+    def __init__(self, checker: ValidityChecker, resolution_rad: float, coarse_gap: int) -> None:
+        self.checker, self.res, self.gap = checker, resolution_rad, coarse_gap
+        self.done: dict[bytes, int] = {}  # interior points found valid, in coarse-to-fine order
+        self.full: set[bytes] = set()  # every interior point valid (or a piece of such a segment)
+        self.blocked: set[bytes] = set()  # an interior point found invalid
+
+    def check(self, qa: np.ndarray, qb: np.ndarray, coarse: bool) -> bool:
+        """Whether the segment qa (n,) -> qb (n,), whose ends are valid, passes: all its interior points, or with
+        ``coarse`` those up to the coarse spacing; only the points not checked before are checked."""
+        key = qa.tobytes() + qb.tobytes()
+        if key in self.full:
+            return True
+        if key in self.blocked:
+            return False
+        delta = qb - qa
+        steps = math.ceil(max(map(abs, delta.tolist())) / self.res)
+        total = steps - 1
+        want = min(total, _coarse_count(steps, self.gap)) if coarse else total
+        done = self.done.get(key, 0)
+        if done < want:
+            if _first_invalid(self.checker, qa + _fractions(steps)[2 + done: 2 + want] * delta) >= 0:
+                self.blocked.add(key)
+                return False
+            self.done[key] = done = want
+        if done >= total:
+            self.full.add(key)
+        return True
+
+    def started(self, qa: np.ndarray, qb: np.ndarray) -> bool:
+        """Whether anything of qa -> qb was checked (or it is known valid or blocked)."""
+        key = qa.tobytes() + qb.tobytes()
+        return key in self.done or key in self.full or key in self.blocked
+
+    def note(self, qa: np.ndarray, qb: np.ndarray, count: int) -> None:
+        """Record that the first ``count`` interior points of qa -> qb (coarse to fine) were found valid."""
+        key = qa.tobytes() + qb.tobytes()
+        total = math.ceil(float(np.abs(qb - qa).max()) / self.res) - 1
+        if count >= total:
+            self.full.add(key)
+        else:
+            self.done[key] = max(self.done.get(key, 0), count)
+
+    def complete(self, qa: np.ndarray, qb: np.ndarray) -> bool:
+        """:meth:`check` of every interior point."""
+        return self.check(qa, qb, coarse=False)
+
+    def is_full(self, qa: np.ndarray, qb: np.ndarray) -> bool:
+        """Whether every interior point of qa -> qb is known valid."""
+        return qa.tobytes() + qb.tobytes() in self.full
+
+    def set_full(self, qa: np.ndarray, qb: np.ndarray) -> None:
+        """Record qa -> qb as valid at the resolution (an edge checked elsewhere, or a piece of a valid segment)."""
+        self.full.add(qa.tobytes() + qb.tobytes())
+
+
+_LAZY_ATTEMPTS = 2  # lazy pulls and shortcuts whose final path failed its completion before one that checks fully
+_COARSE_GAP = 8  # a candidate segment is first checked every 8 steps of the edge resolution (0.08 rad by default)
 
 
 def pull(checker: ValidityChecker, path: np.ndarray, resolution_rad: float, known: list[bool] | None = None,
@@ -635,29 +733,137 @@ def pull(checker: ValidityChecker, path: np.ndarray, resolution_rad: float, know
         (the taut path (L, n), or None if an edge of ``path`` is invalid; that edge's index i, or -1; the indices of
         the edges of ``path`` found valid on the way).
     """
+    segs = _Segments(checker, resolution_rad, _COARSE_GAP)
+    for e, ok in enumerate(known or []):
+        if ok:
+            segs.set_full(path[e], path[e + 1])
+    taut, bad = _pull(segs, path, coarse=False, blocked=blocked)
+    valid = [e for e in range(len(path) - 1) if not (known and known[e]) and segs.is_full(path[e], path[e + 1])]
+    return taut, bad, valid
+
+
+def _pull(segs: _Segments, path: np.ndarray, coarse: bool,
+          blocked: set[tuple[int, int]] | frozenset[tuple[int, int]] = frozenset()) -> tuple[np.ndarray | None, int]:
+    """:func:`pull` on a segment record, checking each candidate coarsely if ``coarse``. Returns (the taut path or
+    None, the index of the edge of ``path`` found blocked or -1)."""
     k_last = len(path) - 1
-    known = list(known) if known is not None else [False] * k_last
-    out, valid_edges, i = [0], [], 0
+    out, i = [0], 0
     while i < k_last:
         gap, j = k_last - i, -1
         while gap >= 1:
             cand = i + gap
             gap = 0 if gap == 1 else (gap + 1) // 2
-            if (i, cand) in blocked:
-                continue
-            if cand == i + 1 and known[i]:
-                j = cand
-                break
-            if _interior_valid(checker, path[i], path[cand], resolution_rad):  # waypoints are valid
-                if cand == i + 1:
-                    valid_edges.append(i)
+            if (i, cand) not in blocked and segs.check(path[i], path[cand], coarse):  # waypoints are valid
                 j = cand
                 break
         if j < 0:  # even the edge to the next waypoint is invalid
-            return None, i, valid_edges
+            return None, i
         out.append(j)
         i = j
-    return path[out].copy(), -1, valid_edges
+    return path[out].copy(), -1
+
+
+def _without_repeats(path: np.ndarray) -> np.ndarray:
+    """path (K, n) without waypoints equal to the one before (no zero-length segment)."""
+    return path[np.concatenate([[True], np.any(np.diff(path, axis=0) != 0.0, axis=1)])]
+
+
+def _shortcut_pass(segs: _Segments, path: np.ndarray, config: PlannerConfig, draws: np.ndarray,
+                   coarse: bool) -> np.ndarray:
+    """The random shortcuts (``draws`` (m, 2), sorted pairs in [0, 1)) and the greedy waypoint removal of
+    :func:`shortcut` on a path whose segments ``segs`` passed, each candidate checked coarsely if ``coarse``."""
+    checker = segs.checker
+    path = _without_repeats(np.array(path, dtype=float))
+    min_gain, ratio = max(config.shortcut_min_gain_rad, _EPS), 1.0 + config.shortcut_min_gain_ratio
+    k = 0  # the next draw; the draws before it are spent
+    while k < len(draws) and len(path) > 2:
+        # The remaining draws against the current path at once; the path only changes when a shortcut is taken,
+        # and the draws after that one are then looked at on the new path: the outcome of taking them one by one.
+        steps = np.diff(path, axis=0)
+        seg_len = np.sqrt(np.einsum("ij,ij->i", steps, steps))
+        cum = np.concatenate([[0.0], np.cumsum(seg_len)])
+        arc = draws[k:] * cum[-1]  # (m, 2) arc lengths
+        ij = np.minimum(np.searchsorted(cum, arc, side="right") - 1, len(path) - 2)
+        frac = (arc - cum[ij]) / seg_len[ij]
+        p1 = path[ij[:, 0]] + steps[ij[:, 0]] * frac[:, :1]
+        p2 = path[ij[:, 1]] + steps[ij[:, 1]] * frac[:, 1:]
+        gap = p2 - p1
+        direct = np.sqrt(np.einsum("ij,ij->i", gap, gap)) * ratio
+        worth = np.flatnonzero((ij[:, 0] != ij[:, 1]) & (direct <= arc[:, 1] - arc[:, 0] - min_gain))
+        taken = -1
+        for c in worth.tolist():
+            # path[i] -> p1 and p2 -> path[j + 1] are pieces of path segments; only p1 -> p2 is new. (Its ends
+            # last: they lie on segments that passed, so they are rarely what is invalid.)
+            if segs.check(p1[c], p2[c], coarse) and checker.all_valid(np.stack([p1[c], p2[c]])):
+                taken = c
+                break
+        if taken < 0:
+            break
+        k += taken + 1
+        i, j = ij[taken].tolist()
+        a, b = p1[taken], p2[taken]
+        # A piece of a segment checked at the resolution is checked at it too: any point on it lies as close to a
+        # checked configuration as before.
+        if segs.is_full(path[i], path[i + 1]):
+            segs.set_full(path[i], a)
+        if segs.is_full(path[j], path[j + 1]):
+            segs.set_full(b, path[j + 1])
+        pieces = [path[: i + 1]]
+        if a.tobytes() != path[i].tobytes():  # (a draw exactly on a waypoint: no zero-length segment)
+            pieces.append(a[None])
+        if b.tobytes() != path[j + 1].tobytes():
+            pieces.append(b[None])
+        pieces.append(path[j + 1:])
+        path = np.vstack(pieces)
+    removed = True
+    while removed:
+        removed = False
+        k = 1
+        while k < len(path) - 1:
+            qa, qk, qb = path[k - 1], path[k], path[k + 1]
+            if math.dist(qa, qb) <= math.dist(qa, qk) + math.dist(qk, qb) and segs.check(qa, qb, coarse):
+                path = np.delete(path, k, axis=0)  # (waypoints are valid)
+                removed = True
+                continue
+            k += 1
+    return path
+
+
+def _completed(segs: _Segments, path: np.ndarray) -> bool:
+    """Complete the check of every segment of path (K, n) that is not yet checked at the resolution; False at the
+    first one found invalid (then recorded as blocked)."""
+    return all(segs.complete(path[e], path[e + 1]) for e in range(len(path) - 1))
+
+
+def _pull_and_shortcut(segs: _Segments, path: np.ndarray, config: PlannerConfig, draws: np.ndarray,
+                       blocked: set[tuple[int, int]] | frozenset[tuple[int, int]] = frozenset(),
+                       pull_first: bool = True) -> tuple[np.ndarray | None, np.ndarray | None, int]:
+    """Pull the path (K, n) taut (if ``pull_first``; :func:`pull`, every segment it keeps checked at the resolution),
+    then shortcut it lazily: every candidate shortcut is checked coarsely, and only the segments of the result are
+    then checked at the resolution. When one of those fails, it is recorded as blocked and the shortcutting is
+    redone (what passed before costs nothing again); after :data:`_LAZY_ATTEMPTS` such failures, once more with
+    every candidate checked at the resolution as it is tried.
+
+    (A candidate checked fully costs its whole length; most candidates that pass are superseded by a later
+    shortcut, so checking them only coarsely until the end saves most of their checks.)
+
+    Returns:
+        (the taut path, the shortcut path, -1), or (None, None, the index of an edge of ``path`` found blocked)
+        when even the edges of ``path`` cannot join its waypoints.
+    """
+    taut = path
+    if pull_first:
+        pulled, bad = _pull(segs, path, False, blocked)
+        if pulled is None:
+            return None, None, bad
+        taut = pulled
+    for attempt in range(_LAZY_ATTEMPTS + 1):
+        coarse = attempt < _LAZY_ATTEMPTS
+        short = _shortcut_pass(segs, taut, config, draws, coarse)
+        if not coarse or _completed(segs, short):
+            return taut, short, -1
+        logger.debug("lazy shortcut: a segment of the result failed at the resolution (attempt %d)", attempt + 1)
+    raise AssertionError("unreachable: the last attempt checks every segment at the resolution")
 
 
 def shortcut(checker: ValidityChecker, path: np.ndarray, config: PlannerConfig,
@@ -669,55 +875,19 @@ def shortcut(checker: ValidityChecker, path: np.ndarray, config: PlannerConfig,
     shorter by ``shortcut_min_gain_rad`` and by ``shortcut_min_gain_ratio`` of its length (the partial segments
     to their neighbouring waypoints are pieces of checked segments). Then a greedy pass removes every
     intermediate waypoint whose neighbours can be joined directly, until none can. Deterministic given rng.
+
+    Checking is lazy: a candidate is checked coarsely (every :data:`_COARSE_GAP` steps of
+    ``config.edge_resolution_rad``), the result's new segments then at the resolution; if one of them fails, the
+    shortcutting is redone knowing it (see :func:`_pull_and_shortcut`).
     """
-    path = np.array(path, dtype=float)
-    path = path[np.concatenate([[True], np.any(np.diff(path, axis=0) != 0.0, axis=1)])]  # no zero-length segment
-    res, min_gain = config.edge_resolution_rad, max(config.shortcut_min_gain_rad, _EPS)
+    path = _without_repeats(np.array(path, dtype=float))
+    segs = _Segments(checker, config.edge_resolution_rad, _COARSE_GAP)
+    for e in range(len(path) - 1):
+        segs.set_full(path[e], path[e + 1])
     draws = np.sort(rng.random((config.shortcut_iterations, 2)), axis=1)
-    k = 0  # the next draw; the draws before it are spent
-    while k < len(draws) and len(path) > 2:
-        steps = np.diff(path, axis=0)
-        seg_len = np.sqrt(np.einsum("ij,ij->i", steps, steps))
-        cum = np.concatenate([[0.0], np.cumsum(seg_len)])
-        taken = -1
-        while taken < 0 and k < len(draws):
-            # The next few draws against the current path at once; the path only changes when a shortcut is taken,
-            # and the draws after that one are then looked at on the new path: the outcome of taking them one by one.
-            chunk = draws[k: k + _SHORTCUT_CHUNK] * cum[-1]  # (m, 2) arc lengths
-            ij = np.minimum(np.searchsorted(cum, chunk, side="right") - 1, len(path) - 2)
-            frac = (chunk - cum[ij]) / seg_len[ij]
-            p1 = path[ij[:, 0]] + steps[ij[:, 0]] * frac[:, :1]
-            p2 = path[ij[:, 1]] + steps[ij[:, 1]] * frac[:, 1:]
-            direct = np.sqrt(np.einsum("ij,ij->i", p2 - p1, p2 - p1)) * (1.0 + config.shortcut_min_gain_ratio)
-            worth = (ij[:, 0] != ij[:, 1]) & (direct <= chunk[:, 1] - chunk[:, 0] - min_gain)
-            for c in np.flatnonzero(worth).tolist():
-                # path[i] -> p1 and p2 -> path[j + 1] are pieces of segments already checked at this resolution: any
-                # point on them lies as close to a checked configuration as before, so only p1 -> p2 is new.
-                if _interior_valid(checker, p1[c], p2[c], res) and checker.all_valid(np.stack([p1[c], p2[c]])):
-                    taken = c  # (the ends last: they lie on checked segments, so they are rarely what is invalid)
-                    break
-            k += len(chunk) if taken < 0 else taken + 1
-        if taken < 0:
-            break
-        i, j = ij[taken]
-        path = np.vstack([path[: i + 1], p1[taken], p2[taken], path[j + 1:]])
-        path = path[np.concatenate([[True], np.any(np.diff(path, axis=0) != 0.0, axis=1)])]  # exact dups
-    blocked: set[tuple[bytes, bytes]] = set()  # waypoint pairs found not joinable (not tried again)
-    removed = True
-    while removed:
-        removed = False
-        k = 1
-        while k < len(path) - 1:
-            qa, qk, qb = path[k - 1], path[k], path[k + 1]
-            key = (qa.tobytes(), qb.tobytes())
-            if key not in blocked and math.dist(qa, qb) <= math.dist(qa, qk) + math.dist(qk, qb):
-                if _interior_valid(checker, qa, qb, res):  # (waypoints are valid)
-                    path = np.delete(path, k, axis=0)
-                    removed = True
-                    continue
-                blocked.add(key)
-            k += 1
-    return path
+    _, short, _ = _pull_and_shortcut(segs, path, config, draws, pull_first=False)
+    assert short is not None
+    return short
 
 
 def plan(checker: ValidityChecker, q_start: np.ndarray, q_goal: np.ndarray, lower: np.ndarray,
@@ -779,24 +949,18 @@ def retry_configs(cfg: PlannerConfig) -> list[PlannerConfig]:
 
 def _search_and_shortcut(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray, lo: np.ndarray,
                          hi: np.ndarray, cfg: PlannerConfig) -> tuple[np.ndarray, np.ndarray, int, int, float, float]:
-    """One RRT* search with its own seed and budget, then shortcutting (redone at ``verify_resolution_rad`` if the
+    """One search with its own seed and budget, then shortcutting (redone at ``verify_resolution_rad`` if the
     path fails that check). Returns (tree path, shortcut path, iterations, tree size, end of search, end of
     shortcutting) (times from ``time.perf_counter``)."""
     t0 = time.perf_counter()
-    rng = np.random.default_rng(cfg.seed)
-    raw, used, n = _search(checker, start, goal, lo, hi, cfg, rng, t0)
-    t1 = time.perf_counter()
-    short = shortcut(checker, raw, cfg, rng)
+    raw, short, used, n, t1 = _search(checker, start, goal, lo, hi, cfg, np.random.default_rng(cfg.seed), t0)
     t2 = time.perf_counter()
     # Edges checked at least as finely as the verification need no second pass.
     if cfg.edge_resolution_rad > cfg.verify_resolution_rad and not path_valid(checker, short,
                                                                                cfg.verify_resolution_rad):
         logger.info("plan: path fails the check at %.3g rad; redoing at that resolution", cfg.verify_resolution_rad)
         fine = replace(cfg, edge_resolution_rad=cfg.verify_resolution_rad)
-        rng = np.random.default_rng(cfg.seed)
-        raw, used, n = _search(checker, start, goal, lo, hi, fine, rng, t0)
-        t1 = time.perf_counter()
-        short = shortcut(checker, raw, fine, rng)
+        raw, short, used, n, t1 = _search(checker, start, goal, lo, hi, fine, np.random.default_rng(cfg.seed), t0)
         t2 = time.perf_counter()
     return raw, short, used, n, t1, t2
 
