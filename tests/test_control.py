@@ -17,6 +17,7 @@ from pickplace.grasping.configurations import GraspConfigurations
 from pickplace.motion import control
 from pickplace.motion.collision import CollisionChecker, CollisionPolicy
 from pickplace.motion.control import ControlConfig, Payload
+from pickplace.motion.loop import ServoGains
 from pickplace.motion.timing import TimingConfig, retime
 from pickplace.robot import gripper
 from pickplace.robot.model import Robot
@@ -445,3 +446,68 @@ def test_comply_along_must_be_a_direction(robot: Robot) -> None:
     d = _data_at(robot, robot.home_q)
     with pytest.raises(ConfigError, match=r"hold\.comply_along"):
         control.hold(robot, d, robot.home_q, 0.01, ControlConfig(), comply_along=np.zeros(3))
+
+
+# --------------------------------------------------------------------------- #
+# joint servos (the ideal loop's joint trajectories and holds)
+# --------------------------------------------------------------------------- #
+
+
+def test_joint_servos_apply_joint_impedance_with_the_references_feedforward(robot: Robot) -> None:
+    """With the servos' gains set and each step's setpoint from ``servo_setpoints``, MuJoCo's actuators apply
+    ``kp (q_ref - q) + kd (qd_ref - qd) + tau_ff(q_ref, qd_ref, qdd_ref)``, computed here independently with
+    Pinocchio's RNEA on the controller's model, clipped to the torque limits."""
+    rng = np.random.default_rng(7)
+    h = robot.handles
+    config = ControlConfig()
+    kp, kd = config.joint_kp, config.joint_kd
+    arm = control.arm_model(robot)
+    limits = np.asarray(robot.torque_limits_nm)
+    for _ in range(20):
+        q = robot.home_q + rng.uniform(-0.3, 0.3, 6)
+        qd = rng.uniform(-1.0, 1.0, 6)
+        q_ref = q + rng.uniform(-0.01, 0.01, 6)
+        qd_ref, qdd_ref = rng.uniform(-1.0, 1.0, 6), rng.uniform(-5.0, 5.0, 6)
+        u = control.servo_setpoints(arm, q_ref[None], qd_ref[None], qdd_ref[None], kp, kd)[0]
+        d = _data_at(robot, q)
+        d.qvel[h.arm_dof] = qd
+        with ServoGains(robot.mj, h.arm_actuators, kp, kd):
+            d.ctrl[h.arm_actuators] = u
+            mujoco.mj_forward(robot.mj, d)
+        v, a = np.zeros(8), np.zeros(8)
+        v[:6], a[:6] = qd_ref, qdd_ref
+        ff = pin.rnea(arm.model, arm.model.createData(), robot.pin_q(q_ref), v, a)[:6]
+        ff += arm.damping * qd_ref + arm.timestep_s * kd * qdd_ref  # the joints' and the servo's implicit damping
+        expected = np.clip(kp * (q_ref - q) + kd * (qd_ref - qd) + ff, -limits, limits)
+        np.testing.assert_allclose(d.actuator_force[h.arm_actuators], expected, rtol=1e-9, atol=1e-9)
+    # out of the block, they are torque motors again
+    np.testing.assert_array_equal(robot.mj.actuator_gainprm[h.arm_actuators, 0], 1.0)
+    np.testing.assert_array_equal(robot.mj.actuator_biasprm[h.arm_actuators, :3], 0.0)
+
+
+def test_an_arm_on_its_reference_stays_on_it(robot: Robot, configs: GraspConfigurations) -> None:
+    """The feedforward makes the servos exact: an arm that starts on a TOPP-RA trajectory at the UR5e's limits stays
+    within a micro-radian of it (its model is the plant's; the feedforward taken on the reference and the integrator's
+    implicit treatment of the servo's damping included)."""
+    traj = retime(np.array([robot.home_q, configs.pregrasp.q]), TimingConfig.ur5e())
+    rec = control.track(robot, _data_at(robot, robot.home_q), traj, ControlConfig())
+    print(f"\njoint servos home->pregrasp: max {rec.max_error_rad:.2e} rad, rms {rec.rms_error_rad:.2e} rad")
+    assert rec.max_error_rad < 1e-6
+    assert rec.saturation_events == 0
+
+
+def test_servo_gains_are_restored_when_a_hook_raises(robot: Robot) -> None:
+    h = robot.handles
+    traj = retime(np.array([robot.home_q, robot.home_q + 0.2]), TimingConfig.ur5e())
+    seen: list[float] = []
+
+    def hook(d: mujoco.MjData) -> None:
+        seen.append(float(robot.mj.actuator_gainprm[h.arm_actuators[0], 0]))
+        if len(seen) == 50:
+            raise GraspFailed("stop here")
+
+    with pytest.raises(GraspFailed):
+        control.track(robot, _data_at(robot, robot.home_q), traj, ControlConfig(), hook=hook)
+    assert seen[0] == pytest.approx(ControlConfig().joint_kp[0])  # the servo ran
+    np.testing.assert_array_equal(robot.mj.actuator_gainprm[h.arm_actuators, 0], 1.0)
+    np.testing.assert_array_equal(robot.mj.actuator_biasprm[h.arm_actuators, :3], 0.0)

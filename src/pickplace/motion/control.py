@@ -28,12 +28,27 @@ Loops (:func:`track`, :func:`hold`, :func:`stop`, :func:`move_linear`, :func:`mo
 through a :class:`~pickplace.motion.loop.ControlLoop` (``loop=``): by default the ideal loop, which reads the
 exact state and applies the torque every physics step (``mujoco.mj_step``, the model's timestep); a realistic
 one (:meth:`~pickplace.motion.loop.LoopConfig.realistic`) reads encoders at 500 Hz and applies each torque one
-period later, held. They write the six motor controls only (never the gripper's), clip the torques to
-``robot.torque_limits_nm`` and count the clipped ticks, call an optional ``hook(data)`` after every physics step
-(it may raise a :class:`~pickplace.errors.PickPlaceError` to abort; it propagates), and return frozen records
-with figures and time series, one row per control tick. For the realistic profile, :meth:`ControlConfig.realistic`
-has the gains (inertia-scaled joint damping, modal Cartesian damping, integral action) and its docstring the
-reasons.
+period later, held.
+
+In the ideal loop, joint impedance with feedforward (the default gains) runs on *joint servos*: the arm's
+actuators take ``kp`` and ``kd`` for the loop (:class:`~pickplace.motion.loop.ServoGains`) and MuJoCo applies
+``kp (u - q) - kd qd`` at every physics step, in C, as a robot's joint drives do; the controller sends one
+setpoint per step, ``u = q_ref + (kd qd_ref + tau_ff) / kp`` (:func:`servo_setpoints`), with the feedforward
+evaluated on the reference, ``tau_ff = M(q_ref) qdd_ref + C(q_ref, qd_ref) qd_ref + g(q_ref) + D qd_ref +
+h kd qdd_ref``. It differs from :func:`joint_impedance` only in where the feedforward's model terms are evaluated
+(the reference instead of the measured state: ``dg/dq e``, the tracking error times gravity's gradient, a few
+micro-newton-metres at the micro-radian errors the arm tracks with) and in the servo's damping being integrated
+implicitly (``h kd qdd_ref`` compensates it exactly on the reference). The Python around the physics is then a
+setpoint write, the error check and the monitor (``pickplace bench loop``). Loops whose law reads the state in
+Python run it there: Cartesian impedance, computed-torque or integral gains, holds that comply along an axis, a
+sensor fault's noise, and every realistic loop (500 Hz, latency, encoders).
+
+The loops write the six arm actuators' controls only (never the gripper's), keep the torques within
+``robot.torque_limits_nm`` (clipped by the law, or by the actuators' force range) and count the clipped ticks, call
+an optional ``hook(data)`` after every physics step (it may raise a :class:`~pickplace.errors.PickPlaceError` to
+abort; it propagates), and return frozen records with figures and time series, one row per control tick. For the
+realistic profile, :meth:`ControlConfig.realistic` has the gains (inertia-scaled joint damping, modal Cartesian
+damping, integral action) and its docstring the reasons.
 
 References are made consistent with MuJoCo's semi-implicit Euler step (``v' = v + h a``, ``q' = q + h v'``):
 positions are sampled on the step grid, the velocity reference is their backward difference and the
@@ -57,7 +72,7 @@ from scipy.linalg.lapack import dgetrf as _getrf
 from scipy.linalg.lapack import dgetri as _getri
 
 from pickplace.errors import ConfigError, ControlError
-from pickplace.motion.loop import IDEAL, ControlLoop, LoopRun, Measured
+from pickplace.motion.loop import IDEAL, ControlLoop, Measured
 from pickplace.motion.timing import Trajectory
 from pickplace.robot.kinematics import frame_jacobian
 from pickplace.robot.model import Robot
@@ -1033,7 +1048,13 @@ def servo_setpoints(arm: ArmModel, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_re
     pos[:, :N_ARM] = q_ref
     pos[:, N_ARM:] = finger_m
     rnea = pin.rnea
-    ff = np.array([rnea(model, data, q, v, a) for q, v, a in zip(pos, vel, acc, strict=True)])[:, :N_ARM]
+    # a row equal to the one before it (a hold, the settling at a trajectory's end) has its feedforward: computed once
+    new = np.ones(n, dtype=bool)
+    new[1:] = ((q_ref[1:] != q_ref[:-1]) | (qd_ref[1:] != qd_ref[:-1]) | (qdd_ref[1:] != qdd_ref[:-1])).any(axis=1)
+    rows = np.flatnonzero(new)
+    ff = np.array([rnea(model, data, pos[i], vel[i], acc[i]) for i in rows])[:, :N_ARM]
+    if len(rows) < n:
+        ff = ff[np.cumsum(new) - 1]
     ff += arm.damping * qd_ref
     ff += (arm.timestep_s * kd) * qdd_ref
     ff += kd * qd_ref
@@ -1081,20 +1102,55 @@ def _run_joint(
     saturated = 0
     limits = arm.torque_limits_nm
 
-    def record(last: int, steps: int) -> TrackingRecord:
+    def record(last: int, steps: int, tau: np.ndarray | None = None) -> TrackingRecord:
         idx = k_log[: last + 1]
         ref = q_ref[idx]
         err = np.abs(ref - q_log[: last + 1])
+        if tau is None:
+            tau = np.array(taus[:last]) if last > 0 else np.empty((0, N_ARM))
         return TrackingRecord(
             max_error_rad=float(err.max()), rms_error_rad=float(np.sqrt(np.mean(err**2))),
             final_error_rad=float(err[-1].max()), saturation_events=saturated, duration_s=steps * dt,
-            steps=steps, t=idx * dt, q=q_log[: last + 1].copy(), q_ref=ref,
-            tau=np.array(taus[:last]) if last > 0 else np.empty((0, N_ARM)))
+            steps=steps, t=idx * dt, q=q_log[: last + 1].copy(), q_ref=ref, tau=tau)
 
     max_err = config.max_joint_error_rad
     err_filter = max_err * max_err * _FILTER  # e @ e below it: every |e_i| <= max_err (no need to look closer)
     inv_limits = 1.0 / limits
     fast = bandwidth == 0.0 and ff and integral is None
+
+    def check(k: int, e: np.ndarray, tau: np.ndarray | None = None) -> None:
+        """Raise if the joint error ``e`` (6,) exceeds the limit (or is not finite)."""
+        err = float(abs(e).max())
+        if not err <= max_err:  # also catches NaN
+            raise ControlError(phase, f"joint error {err:.4g} rad exceeds {max_err:g} rad at t = {k * dt:.3f} s",
+                               record(j, k, tau))
+
+    if fast and noise is None and yielding is None and loop.ideal:
+        # joint servos (see the module's docstring): MuJoCo's actuators run the feedback at every physics step; the
+        # controller sends each step's setpoint with the reference's feedforward
+        setpoints = servo_setpoints(arm, q_ref[:n], qd_ref[:n], qdd_ref[:n], kp, kd, float(qpos[finger]))
+
+        def logged(rows: np.ndarray) -> np.ndarray:
+            """Log the ticks the tape covers and the state after them; return the torques applied."""
+            nonlocal j
+            k = j = len(rows)
+            q_log[:k] = rows[:, :N_ARM]
+            q_log[k] = qpos[h.arm_qpos]
+            k_log[: k + 1] = np.arange(k + 1)
+            return rows[:, _TAU].copy()
+
+        def on_error(k: int, e: np.ndarray, rows: np.ndarray) -> None:
+            check(k, e, logged(rows))
+
+        rows = loop.run_servo(robot, d, setpoints, kp, kd, q_ref, err_filter, on_error, hook)
+        tau = logged(rows)
+        saturated = int(np.count_nonzero((np.abs(tau) >= limits * (1.0 - 1e-12)).any(axis=1)))
+        rec = record(j, len(rows), tau)
+        log.debug("%s: %d steps on the joint servos, max error %.3g rad, rms %.3g rad, final %.3g rad, %d saturated "
+                  "steps", phase, rec.steps, rec.max_error_rad, rec.rms_error_rad, rec.final_error_rad,
+                  rec.saturation_events)
+        return rec
+
     if fast:  # the reference's terms of the law, for every tick at once (elementwise: the same numbers)
         model, data, qp = arm.model, arm.data, arm._q
         vel = np.zeros((n + 1, model.nv))
@@ -1103,13 +1159,6 @@ def _run_joint(
         accel[:, :N_ARM] = qdd_ref
         damp_ref = arm.damping * qd_ref
         rnea = pin.rnea
-
-    def check(k: int, e: np.ndarray) -> None:
-        """Raise if the joint error ``e`` (6,) exceeds the limit (or is not finite)."""
-        err = float(abs(e).max())
-        if not err <= max_err:  # also catches NaN
-            raise ControlError(phase, f"joint error {err:.4g} rad exceeds {max_err:g} rad at t = {k * dt:.3f} s",
-                               record(j, k))
 
     def law(k: int, q: np.ndarray, qd: np.ndarray) -> np.ndarray | None:
         nonlocal j, saturated
@@ -1148,34 +1197,7 @@ def _run_joint(
         taus.append(tau)
         return tau
 
-    if fast and noise is None and yielding is None and loop.ideal:
-        # the feedback runs in MuJoCo's actuators at every physics step (joint servos): the controller sends each
-        # step's setpoint, ``q_ref + (kd qd_ref + tau_ff) / kp``, with the feedforward of the reference
-        # ``tau_ff = M(q_ref) qdd_ref + C(q_ref, qd_ref) qd_ref + g(q_ref) + D qd_ref + h kd qdd_ref`` (the last
-        # term: the integrator treats the servo's damping implicitly, as it does the joints', see arm_model)
-        setpoints = servo_setpoints(arm, q_ref[:n], qd_ref[:n], qdd_ref[:n], kp, kd, float(qpos[finger]))
-
-        def on_error(k: int, e: np.ndarray, rows: np.ndarray) -> None:
-            nonlocal j
-            j = k
-            q_log[:k] = rows[:, :N_ARM]
-            q_log[k] = d.qpos[h.arm_qpos]
-            k_log[: k + 1] = np.arange(k + 1)
-            taus[:] = list(rows[:, _TAU])
-            check(k, e)
-
-        rows = loop.run_servo(robot, d, setpoints, kp, kd, q_ref, err_filter, on_error, hook)
-        steps = len(rows)
-        j = steps
-        q_log[:steps] = rows[:, :N_ARM]
-        q_log[steps] = d.qpos[h.arm_qpos]
-        k_log[: steps + 1] = np.arange(steps + 1)
-        tau = rows[:, _TAU]
-        saturated = int(np.count_nonzero((np.abs(tau) >= limits * (1.0 - 1e-12)).any(axis=1)))
-        taus[:] = list(tau)
-        stats = LoopRun(steps, steps)
-    else:
-        stats = loop.run(robot, d, law, hook, noise)
+    stats = loop.run(robot, d, law, hook, noise)
     rec = record(j, stats.steps)
     log.debug("%s: %d steps, max error %.3g rad, rms %.3g rad, final %.3g rad, %d saturated steps", phase,
               rec.steps, rec.max_error_rad, rec.rms_error_rad, rec.final_error_rad, rec.saturation_events)

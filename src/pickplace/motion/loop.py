@@ -11,7 +11,14 @@ at each *tick*:
 3. sends the (clipped) torque, which reaches the motors ``latency_s`` later and is held until the next one
    arrives (zero-order hold).
 
-The monitor ``hook(d)`` is called after every physics step, ticks or not.
+The monitor ``hook(d)`` is called after every physics step, ticks or not. A :class:`Measured` hook also gets the
+loop's *tape*: MuJoCo's sensors of the arm (positions, velocities, the torques applied, the tcp; one contiguous block
+of ``sensordata``, :data:`~pickplace.robot.model.ARM_STATE_FIELDS`) copied once per step, handed over in blocks, so
+that what is measured on every step (the joint limits, the tcp's line) is computed per block in numpy.
+
+:meth:`ControlLoop.run_servo` runs the ideal loop's joint trajectories on the arm's actuators made joint servos
+(:class:`ServoGains`): MuJoCo applies the feedback at every step in C and Python writes one setpoint per step
+(:func:`pickplace.motion.control.servo_setpoints`).
 
 With :class:`LoopConfig`'s defaults (every field 0, :attr:`LoopConfig.ideal`) the loop is today's ideal one:
 the law reads MuJoCo's exact ``qpos``/``qvel`` every physics step and its torque is applied in that same step.
