@@ -572,13 +572,16 @@ class SensorObserver:
         m, d = self.robot.mj, self.d
         acc = np.zeros(6)
         mujoco.mj_objectAcceleration(m, d, mujoco.mjtObj.mjOBJ_BODY, self._hand, acc, 0)
-        a = acc[3:] - np.array([0.0, 0.0, self._g])  # it reads the specific force; less gravity's: the acceleration
+        a_z = float(acc[5]) - self._g  # it reads the specific force; less gravity's: the acceleration
         if at is not None:
             vel = np.zeros(6)
             mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, self._hand, vel, 0)
-            r = at - d.xpos[self._hand]
-            a = a + np.cross(acc[:3], r) + np.cross(vel[:3], np.cross(vel[:3], r))
-        return float(a[2])
+            rx, ry, rz = (float(x) for x in at - d.xpos[self._hand])
+            ax, ay = float(acc[0]), float(acc[1])
+            wx, wy, wz = float(vel[0]), float(vel[1]), float(vel[2])
+            # the z components of alpha x r and of w x (w x r) = w (w . r) - r (w . w)
+            a_z += ax * ry - ay * rx + wz * (wx * rx + wy * ry + wz * rz) - rz * (wx * wx + wy * wy + wz * wz)
+        return a_z
 
     def load_sample(self) -> tuple[float, float, float]:
         """The gripper's force, the wrist's vertical force less its zero and the hand's own weight and inertia,
