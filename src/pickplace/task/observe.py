@@ -173,8 +173,10 @@ class SimulatorObserver:
         self._in_tcp = slice(a, a + 3)
         b = h.object_position_sensor
         self._position = data.sensordata[b : b + 3]  # a view: it follows the simulation
-        self._pad_force = [slice(int(b) + 1, int(b) + 4) for b in h.pad_sensors]
-        self._finger = int(h.finger_joints[0])
+        left, right = (int(b) + 1 for b in h.pad_sensors)
+        self._left, self._right = data.sensordata[left : left + 3], data.sensordata[right : right + 3]  # views
+        self._load_z = (left + 2, right + 2)
+        self._axis = data.xaxis[int(h.finger_joints[0])]  # a view
         self._g = float(-robot.mj.opt.gravity[2])
 
     def observe(self, near: pin.SE3 | None = None) -> pin.SE3:
@@ -230,15 +232,17 @@ class SimulatorObserver:
         Read from MuJoCo's contact sensors of the pads (the net force of each pad's contacts with the object): a
         pad's normal force is its net force along the fingers' axis (the pads' faces are normal to it).
         """
-        sd = self.d.sensordata
-        left, right = sd[self._pad_force[0]], sd[self._pad_force[1]]
-        axis = self.d.xaxis[self._finger]
-        normal = abs(float(left.dot(axis))) + abs(float(right.dot(axis)))
-        return normal, float(left[2] + right[2]), self._g + float(self.d.qacc[self._dof + 2])
+        normal = abs(float(self._left.dot(self._axis))) + abs(float(self._right.dot(self._axis)))
+        return normal, self._load_z_n(), self._g + float(self.d.qacc[self._dof + 2])
+
+    def _load_z_n(self) -> float:
+        """The vertical force of the pads on the object (N)."""
+        sd, (left, right) = self.d.sensordata, self._load_z
+        return float(sd[left] + sd[right])
 
     def airborne(self, z0_m: float, mass_kg: float) -> bool:
         """The object's origin is 3 mm above where it rested."""
-        return bool(self.object_position()[2] > z0_m + 0.003)
+        return bool(self._position[2] > z0_m + 0.003)
 
     def touched_down(self, mass_kg: float) -> bool:
         """Whether something below the held object of ``mass_kg`` carries at least :data:`TOUCH_DOWN_FRACTION` of
@@ -249,8 +253,8 @@ class SimulatorObserver:
         axis) touches down a millimetre or so early, and the stiff arm would press it into the surface short of
         its target instead of stopping there.
         """
-        _, load, g_plus_a = self.load_sample()
-        return load < (1.0 - TOUCH_DOWN_FRACTION) * mass_kg * g_plus_a
+        g_plus_a = self._g + float(self.d.qacc[self._dof + 2])
+        return self._load_z_n() < (1.0 - TOUCH_DOWN_FRACTION) * mass_kg * g_plus_a
 
     def _p_tcp_object(self) -> np.ndarray:
         """The object's origin in the tcp frame (3,) (m): MuJoCo's sensor of it (robot.model)."""
