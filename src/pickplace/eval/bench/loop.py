@@ -41,6 +41,7 @@ from pickplace.eval.bench import machine_info
 from pickplace.motion import control as control_module
 from pickplace.motion import loop as loop_module
 from pickplace.motion.loop import ControlLoop
+from pickplace.perception.obstacles import ObstacleCamera
 from pickplace.task.episode import EpisodeConfig, EpisodeResult, run_episode
 from pickplace.task.observe import SensorObserver
 from pickplace.task.profile import ProfileConfig
@@ -149,13 +150,16 @@ def loop_timer(clock: Callable[[], float] = time.perf_counter) -> Iterator[list[
     """Within the block, the time (s, by ``clock``) spent in the control loops adds up in the first element of the
     list yielded: in :meth:`ControlLoop.run` and :meth:`ControlLoop.run_servo` (law, monitor, telemetry and physics)
     and in :func:`~pickplace.motion.control.servo_setpoints` (the joint servos' setpoints: the law's work done
-    ahead). The second element adds up the part of it spent in the realistic profile's camera (its re-checks of the
-    resting object inside the loops: rendering and pose fitting, :class:`~pickplace.task.observe.SensorObserver`)."""
+    ahead). The second element adds up the part of it spent in the realistic profile's cameras: the table camera's
+    re-checks of the resting object (rendering and pose fitting, :class:`~pickplace.task.observe.SensorObserver`) and
+    the obstacle camera's looks for the trajectory predictor's believed world
+    (:class:`~pickplace.perception.obstacles.ObstacleCamera`)."""
     total = [0.0, 0.0]
     depth = [0]
     saved = [(ControlLoop, "run"), (ControlLoop, "run_servo"), (control_module, "servo_setpoints")]
     originals = [getattr(owner, name) for owner, name in saved]
-    recheck = SensorObserver._recheck
+    cameras = [(SensorObserver, "_recheck"), (ObstacleCamera, "columns")]
+    camera_originals = [getattr(owner, name) for owner, name in cameras]
 
     def timed(f: Callable[..., Any]) -> Callable[..., Any]:
         def wrapper(*args: Any, **kwargs: Any) -> Any:
@@ -169,23 +173,26 @@ def loop_timer(clock: Callable[[], float] = time.perf_counter) -> Iterator[list[
 
         return wrapper
 
-    def camera(self: SensorObserver, *args: Any, **kwargs: Any) -> Any:
-        t0 = clock()
-        try:
-            return recheck(self, *args, **kwargs)
-        finally:
-            if depth[0]:
-                total[1] += clock() - t0
+    def camera(f: Callable[..., Any]) -> Callable[..., Any]:
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
+            t0 = clock()
+            try:
+                return f(*args, **kwargs)
+            finally:
+                if depth[0]:
+                    total[1] += clock() - t0
+
+        return wrapper
 
     for (owner, name), f in zip(saved, originals, strict=True):
         setattr(owner, name, timed(f))
-    SensorObserver._recheck = camera  # type: ignore[method-assign]
+    for (owner, name), f in zip(cameras, camera_originals, strict=True):
+        setattr(owner, name, camera(f))
     try:
         yield total
     finally:
-        for (owner, name), f in zip(saved, originals, strict=True):
+        for (owner, name), f in zip(saved + cameras, originals + camera_originals, strict=True):
             setattr(owner, name, f)
-        SensorObserver._recheck = recheck  # type: ignore[method-assign]
 
 
 def replay(tape: Tape, clock: Callable[[], float] = time.perf_counter) -> tuple[float, mujoco.MjData]:
