@@ -397,6 +397,8 @@ class SensorObserver:
         self._load = math.nan
         self._g_plus_a = math.nan
         self._t_load = math.nan
+        self._sample_t = math.nan  # the step of the last load_sample (its inputs unchanged since), and its values
+        self._sample = (math.nan, math.nan, math.nan)
         self.observations = 0
 
     # -- the camera ------------------------------------------------------------------------------------- #
@@ -438,6 +440,7 @@ class SensorObserver:
         self._belief = self._observed = self._seen = T_world_object
         self._observed_from_hand = from_hand
         self._T_tcp_object = None
+        self._sample_t = math.nan  # the held object's pose in the hand changed
         t = float(self.d.time)
         self._checks = [(t, T_world_object.translation.copy(), from_hand)]
         self._looked_at = t
@@ -517,6 +520,7 @@ class SensorObserver:
         est = self.camera.in_hand(self.d, self.object_pose(), free_axes=self._tcp_pose().rotation[:, :1])
         self.observations += 1
         self._T_tcp_object = self._tcp_pose().actInv(est.T_world_object)
+        self._sample_t = math.nan  # the held object's pose in the hand changed
 
     # -- the gripper and the wrist ---------------------------------------------------------------------- #
 
@@ -525,6 +529,7 @@ class SensorObserver:
         (the hand may still move a little as the arm settles)."""
         f, a = self._wrist()
         self._tare = f - self._hand_mass * (self._g + a)
+        self._sample_t = math.nan
 
     def grasped(self, T_tcp_object_model: pin.SE3) -> None:
         """In the hand where it was seen, centred between the pads along their closing axis (tcp y), turned as
@@ -533,11 +538,13 @@ class SensorObserver:
         p = self._tcp_pose().actInv(self._belief).translation.copy()
         p[1] = T_tcp_object_model.translation[1]
         self._T_tcp_object = pin.SE3(T_tcp_object_model.rotation.copy(), p)
+        self._sample_t = math.nan  # the held object's pose in the hand changed
 
     def released(self) -> None:
         """The object stays where it was believed to be when the pads opened."""
         self._belief = self._seen = self.object_pose()
         self._T_tcp_object = None
+        self._sample_t = math.nan  # the held object's pose in the hand changed
         self._mass = None
         self._checks = []
 
@@ -589,11 +596,18 @@ class SensorObserver:
 
     def load_sample(self) -> tuple[float, float, float]:
         """The gripper's force, the wrist's vertical force less its zero and the hand's own weight and inertia,
-        and ``g`` plus the held object's vertical acceleration (where the robot believes it is in the hand)."""
+        and ``g`` plus the held object's vertical acceleration (where the robot believes it is in the hand).
+
+        The sensors are read once per physics step: the checks that ask again in the same step (the lift's and the
+        monitor's) get the same reading."""
+        t = float(self.d.time)
+        if t == self._sample_t:
+            return self._sample
         f, a = self._wrist()
         load = f - self._tare - self._hand_mass * (self._g + a)
         a_object = self._hand_acceleration_z(self.object_position()) if self._T_tcp_object is not None else a
-        return float(self.pad_forces().sum()), load, self._g + a_object
+        self._sample_t, self._sample = t, (float(self.pad_forces().sum()), load, self._g + a_object)
+        return self._sample
 
     def airborne(self, z0_m: float, mass_kg: float) -> bool:
         """The hand has risen 3 mm and the wrist carries at least ``lifted_fraction`` of the weight (low-passed
