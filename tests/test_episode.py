@@ -147,9 +147,10 @@ def test_the_arm_moves_on_through_the_pregrasp_the_lift_and_the_preplace(default
 
 def test_the_phases_one_after_another_stop_between_them_and_keep_the_limits(stepwise_episode: EpisodeResult,
                                                                             default_episode: EpisodeResult) -> None:
-    """With every blend off (how the realistic profile approaches and sets down), the straight moves are
-    Cartesian, timed long enough for the joints' limits too (the tcp's minimum-jerk profile alone asked the elbow
-    for 1.47 times its limit); the continuous motion saves half a second."""
+    """With every blend off (how the realistic profile approaches and sets down), each straight move is a joint
+    trajectory of its own through its IK waypoints, at rest at both ends, within the joints' limits (a Cartesian
+    move with the tcp's minimum-jerk profile asked the elbow for 1.47 times its limit); the continuous motion saves
+    a few tenths of a second more."""
     r = stepwise_episode
     _report("default scene, phases one after another", r)
     _assert_meets_targets(r)
@@ -195,11 +196,27 @@ def test_a_stretched_out_arm_still_moves_on_through_its_straight_moves() -> None
         assert speed[k] > 0.03, f"the tcp stopped where {phase} starts ({speed[k]:.3f} m/s)"
 
 
+def test_a_lift_that_cannot_run_into_the_transport_is_a_joint_trajectory_of_its_own() -> None:
+    """A tennis ball far out, at (0.6095, 0.3965) m: near the stretched-out pose the spline of the lift timed with
+    the transport strays from the lift's line even through waypoints 2.5 mm apart, so the ball is lifted on its
+    own. That lift is a joint trajectory through its IK waypoints, checked against the table; a Cartesian lift
+    there let the elbow fold the other way (87 times its acceleration limit) and the upper arm touched the table."""
+    from pickplace.world.objects import library_object
+
+    base = EpisodeConfig()
+    config = dataclasses.replace(base, scene=dataclasses.replace(
+        base.scene, object=library_object("tennis_ball"), start_xy_m=(0.6095, 0.3965), goal_xy_m=(0.53, -0.25)))
+    r = run_episode(config, seed=0)
+    _report("tennis ball far out", r)
+    _assert_meets_targets(r)
+    assert r.tracking_by_phase["LIFT"].cartesian_steps == 0 and r.tracking_by_phase["LIFT"].joint_steps > 0
+
+
 def test_tracking_errors_cover_every_phase_that_tracks(default_episode: EpisodeResult,
                                                        stepwise_episode: EpisodeResult) -> None:
-    """Joint loops (trajectories, holds) and Cartesian moves are each measured in the phase they ran in; the
-    episode's figures are the maxima over all phases. Moving on between the phases, every motion is a joint loop;
-    one after another, the straight moves are Cartesian."""
+    """Joint loops (trajectories, holds) are measured in the phase they ran in; the episode's figures are the
+    maxima over all phases. Moving on between the phases or one after another, every motion is a joint loop: the
+    straight moves made on their own are joint trajectories through their IK waypoints too, not Cartesian moves."""
     r = default_episode
     by_phase = r.tracking_by_phase
     assert {p for p, t in by_phase.items() if t.cartesian_steps > 0} == set()
@@ -208,19 +225,16 @@ def test_tracking_errors_cover_every_phase_that_tracks(default_episode: EpisodeR
     assert math.isnan(r.tcp_tracking_error_max_m)
     r = stepwise_episode
     by_phase = r.tracking_by_phase
-    cartesian = {p for p, t in by_phase.items() if t.cartesian_steps > 0}
+    assert {p for p, t in by_phase.items() if t.cartesian_steps > 0} == set()
     joint = {p for p, t in by_phase.items() if t.joint_steps > 0}
-    assert cartesian == {"DESCEND", "LIFT", "DESCEND_PLACE", "RETRACT"}
-    assert joint >= {"EXEC_APPROACH", "CLOSE", "EXEC_TRANSPORT", "RELEASE", "RETRACT"}  # trajectories and holds
+    assert joint >= {"EXEC_APPROACH", "DESCEND", "CLOSE", "LIFT", "EXEC_TRANSPORT", "DESCEND_PLACE", "RELEASE",
+                     "RETRACT"}
     assert r.tracking_error_max_rad == max(by_phase[p].joint_error_max_rad for p in joint)
-    assert r.tcp_tracking_error_max_m == max(by_phase[p].tcp_position_error_max_m for p in cartesian)
-    assert r.tcp_orientation_error_max_rad == max(by_phase[p].tcp_orientation_error_max_rad for p in cartesian)
-    assert 0 < r.tcp_tracking_error_max_m < 1e-3 and 0 < r.tcp_orientation_error_max_rad < 1e-2
-    assert all(math.isnan(by_phase[p].tcp_position_error_max_m) for p in joint - cartesian)
+    assert math.isnan(r.tcp_tracking_error_max_m) and math.isnan(r.tcp_orientation_error_max_rad)
     steps = sum(t.joint_steps + t.cartesian_steps for t in by_phase.values())
     assert steps == pytest.approx(r.cycle_time_s / 1e-3 + 1000 * r.config.machine.stable_after_release_s, abs=1100)
     json_phase = r.to_dict()["tracking_by_phase"]["LIFT"]
-    assert json_phase["joint_error_max_rad"] is None and json_phase["tcp_position_error_max_m"] > 0
+    assert json_phase["joint_error_max_rad"] > 0 and json_phase["tcp_position_error_max_m"] is None
 
 
 @pytest.mark.slow

@@ -392,7 +392,7 @@ def retime_parts(
     instead of stopping at the corner. The planned parts are checked (``is_valid``) and, while the check
     rejects the spline anywhere, their segments are densified (longest ``0.4, 0.2, ...`` rad, halved each round,
     :attr:`TimingConfig.max_densify_rounds` + 2 rounds): the spline then hugs their polyline, and corners at the
-    junctions come back.
+    junctions come back. With straight parts only (a straight move timed on its own), a rejection is final.
 
     Args:
         parts: The parts in order; each starts where the one before ends.
@@ -443,6 +443,9 @@ def retime_parts(
                      rejected)
         if not rejected:
             break
+        if all(p.straight for p in parts):  # nothing to densify: the next rounds would give the same spline
+            raise TimingFailed(f"the checks reject parts {rejected} of the spline through the straight parts' "
+                               "waypoints")
     else:
         raise TimingFailed(f"the checks still reject parts {rejected} of the spline after densifying the planned "
                            f"parts to {lengths[-1]:.4g} rad")

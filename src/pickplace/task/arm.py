@@ -12,6 +12,13 @@ transport, the transport into the set-down) is one trajectory timed at once (:me
 :func:`~pickplace.motion.timing.retime_parts`) and run part by part (:meth:`Arm.execute` with ``until``): each
 phase runs its part and checks what it must where the part ends, the arm still moving.
 
+A straight tcp move made on its own (the final approach, the lift, the set-down, the back-off and the rises, where
+they do not run on from or into a planned path) is a joint trajectory too (:meth:`Arm.linear`): its IK waypoints
+(:func:`~pickplace.robot.ik.solve_line`), timed within the joints' limits with the spline on the line and checked
+against collisions, tracked by the joint controller. Only where no such trajectory can be built (a waypoint does not
+solve on the arm's branch, the spline does not stay on the line even through waypoints 1 mm apart) is the move
+made by the Cartesian controller (timed within the joints' limits as well).
+
 Every physics step of every motion is measured against the UR5e's joint speed, acceleration and torque limits
 (:class:`~pickplace.motion.limits.LimitMeter`, the record's ``limits``), and the straight line the tcp follows
 where a phase asks for it (:meth:`Arm.following`).
@@ -42,7 +49,7 @@ from pickplace.motion.loop import ControlLoop, Measured
 from pickplace.motion.planning import PlannerConfig, plan, segment_valid
 from pickplace.motion.timing import PathPart, TimingConfig, Trajectory, retime, retime_parts
 from pickplace.robot import gripper
-from pickplace.robot.ik import IKResult, solve_line
+from pickplace.robot.ik import LINE_STEP_M, IKConfig, IKResult, solve_line
 from pickplace.robot.kinematics import frame_jacobian, frame_pose
 from pickplace.robot.model import Robot
 from pickplace.task.faults import FaultConfig, FaultInjector
@@ -96,6 +103,11 @@ SUPPORT_MARGIN = 0.03
 #: Waypoint spacing (m) of a straight move re-solved to be timed with its neighbours (:meth:`Arm.plan_through`)
 #: where its 1 cm waypoints do not keep the spline on its line.
 REFINED_LINE_STEP_M = 0.0025
+
+#: Waypoint spacings (m) at which a straight move made on its own (:meth:`Arm.linear`) is solved, in turn, until
+#: the spline through its IK waypoints stays within :data:`LINE_TOLERANCE_M` of its line: 1 cm, then
+#: :data:`REFINED_LINE_STEP_M`, then 1 mm (the arm stretched out).
+STRAIGHT_STEPS_M = (LINE_STEP_M, REFINED_LINE_STEP_M, 0.001)
 
 #: Steps of the straight line to ``home`` tried for a start within the planner's margin (fraction of the line).
 ESCAPE_STEP = 0.05
@@ -465,15 +477,17 @@ class Arm:
         robot = self.robot
         return frame_pose(robot.pin, self._pdata, robot.pin_q(q), robot.pin_tcp_frame).translation.copy()
 
-    def _straight_part(self, move: StraightMove) -> PathPart:
-        """A straight move as a part of a path to time: its spline checked against its line."""
+    def _straight_part(self, move: StraightMove, checker: CollisionChecker | None = None) -> PathPart:
+        """A straight move as a part of a path to time: its spline checked against its line (and, with ``checker``,
+        against collisions)."""
         a, b = self.tcp_at(move.path[0]), self.tcp_at(move.path[-1])
         u = (b - a) / max(float(np.linalg.norm(b - a)), 1e-12)
 
         def on_line(qs: np.ndarray) -> bool:
             off = np.array([self.tcp_at(q) - a for q in qs])
             side = off - np.outer(off @ u, u)
-            return bool(np.all(np.einsum("ij,ij->i", side, side) <= LINE_TOLERANCE_M**2))
+            return bool(np.all(np.einsum("ij,ij->i", side, side) <= LINE_TOLERANCE_M**2)) and (
+                checker is None or checker.all_valid(qs))
 
         return PathPart(move.path, straight=True, is_valid=on_line, tcp_speed_m_s=move.speed_m_s,
                         reserve=move.reserve)
@@ -640,14 +654,116 @@ class Arm:
             self._next_step, self._next_part, self._straight = step, part, straight
         return fraction
 
-    def vertical(self, phase: Phase, target_z: float, hook: control.Hook | None = None) -> control.CartesianRecord:
-        """Move the tcp straight up or down to ``target_z`` (m); ``hook`` replaces the monitor (and must call it)."""
-        target = self.tcp_pose().translation.copy()
-        target[2] = target_z
-        return self.linear(phase, target, hook)
+    def vertical(self, phase: Phase, target_z: float, hook: control.Hook | None = None,
+                 checker: CollisionChecker | None = None, reserve: float = 0.0,
+                 ik: IKConfig | None = None) -> control.TrackingRecord | control.CartesianRecord:
+        """Move the tcp straight up or down to ``target_z`` (m), the hand turned as it is (:meth:`linear`)."""
+        tcp = self.tcp_pose()
+        return self.linear(phase, np.array([*tcp.translation[:2], target_z]), hook, checker, reserve, ik)
 
-    def linear(self, phase: Phase, target: np.ndarray, hook: control.Hook | None = None) -> control.CartesianRecord:
-        """Move the tcp along a straight line to ``target`` (3,) (m); ``hook`` replaces the monitor."""
+    def linear(self, phase: Phase, target: np.ndarray | pin.SE3, hook: control.Hook | None = None,
+               checker: CollisionChecker | None = None, reserve: float = 0.0,
+               ik: IKConfig | None = None) -> control.TrackingRecord | control.CartesianRecord:
+        """Move the tcp along a straight line to ``target``: a position (3,) (m), the hand turned as it is, or a
+        pose; as a joint trajectory through the line's IK waypoints (:meth:`line_trajectory`), tracked by the joint
+        controller, or, where none can be built, by the Cartesian controller. ``hook`` replaces the monitor (and
+        must call it); it may end the move early by raising.
+
+        Args:
+            phase: The phase it runs in (for the record and errors).
+            target: Where the tcp goes.
+            hook: Called after every physics step instead of the monitor.
+            checker: What the arm may not touch on the way (the trajectory is checked against it at every
+                ``timing.check_step_rad`` of the joints' path); None: nothing checked before it runs (the monitor
+                still watches every step).
+            reserve: The share of the joints' limits kept for what the controller must hold beyond the reference
+                (an object the table still carries: :meth:`support_reserve`).
+            ik: IK settings for the waypoints (default :class:`IKConfig`).
+
+        Raises:
+            PhaseFailed: the line runs into something ``checker`` forbids (the geoms are named), or the Cartesian
+                move stopped short of the target.
+        """
+        goal = target if isinstance(target, pin.SE3) else pin.SE3(self.tcp_pose().rotation, np.asarray(target, float))
+        if self.plan_line(phase, goal, checker, reserve, ik):
+            return self.execute(phase, hook=hook)
+        return self._cartesian(phase, goal.translation, hook)
+
+    def plan_line(self, phase: Phase, target: pin.SE3, checker: CollisionChecker | None = None, reserve: float = 0.0,
+                  ik: IKConfig | None = None) -> bool:
+        """Make the straight move from here to ``target`` the trajectory to execute (:meth:`line_trajectory`, slowed
+        down until the grip holds what it carries), or say that none can be built (then the caller makes the move
+        by the Cartesian controller; logged).
+
+        Returns:
+            Whether the trajectory was made.
+
+        Raises:
+            PhaseFailed: a waypoint of the line touches something ``checker`` forbids (the geoms are named).
+        """
+        try:
+            traj = self.line_trajectory(target, checker, reserve, ik)
+        except UnreachableTarget as exc:
+            if "collision" in exc.reason and exc.q is not None and checker is not None:
+                pairs = ", ".join(f"{a} <-> {b}" for a, b in checker.colliding_pairs(exc.q))
+                raise PhaseFailed(phase, f"the straight move to ({', '.join(f'{v:.3f}' for v in target.translation)})"
+                                         f" m runs into something: {exc.reason}; {pairs}") from exc
+            log.info("%s: no joint trajectory along the straight move (%s): the Cartesian controller makes it",
+                     phase.value, exc)
+            return False
+        except TimingFailed as exc:
+            log.info("%s: no joint trajectory along the straight move (%s): the Cartesian controller makes it",
+                     phase.value, exc)
+            return False
+        traj, _ = self._slowed_for_grip(phase.value, traj)
+        self.trajectory = traj
+        self._straight = (True,)
+        self.segment_checker = None  # checked against its line and collisions as it was timed
+        return True
+
+    def line_trajectory(self, target: pin.SE3, checker: CollisionChecker | None = None, reserve: float = 0.0,
+                        ik: IKConfig | None = None) -> Trajectory:
+        """The straight tcp move from here to ``target`` as a joint trajectory, at rest at both ends: the line's IK
+        waypoints (on the arm's branch, every :data:`STRAIGHT_STEPS_M` in turn until one spacing works) timed
+        within the joints' speed and acceleration limits (less ``reserve``) and the tcp's straight-move speed
+        (``ControlConfig.vertical_speed_m_s``), its spline within :data:`LINE_TOLERANCE_M` of the line and (with
+        ``checker``) touching nothing the checker forbids.
+
+        Returns:
+            The trajectory (one that stands still if the tcp is already at ``target``, within 1 µm and 1 µrad).
+
+        Raises:
+            UnreachableTarget: the line cannot be followed on the arm's branch at any spacing; the reason says
+                "collision" (and ``q`` is where) if a waypoint touches something.
+            TimingFailed: the spline leaves the line, or touches something, at every spacing.
+        """
+        tcp = self.tcp_pose()
+        turn = float(np.linalg.norm(pin.log3(tcp.rotation.T @ target.rotation)))
+        if float(np.linalg.norm(target.translation - tcp.translation)) < 1e-6 and turn < 1e-6:
+            return retime(np.vstack([self.q, self.q]), self.timing)
+        finger = gripper.finger_travel(self.robot, self.d)
+        valid = None if checker is None else checker.is_valid
+        failure: UnreachableTarget | TimingFailed | None = None
+        for step in STRAIGHT_STEPS_M:
+            try:
+                res = solve_line(self.robot, target, self.q, "straight move", ik, valid, finger, step_m=step)
+            except UnreachableTarget as exc:
+                if "collision" in exc.reason:
+                    raise  # closer waypoints do not take it away from what it touches
+                failure = exc
+                continue
+            assert res.path is not None
+            part = self._straight_part(StraightMove(res.path, self.ctrl.vertical_speed_m_s, reserve), checker)
+            try:
+                return retime_parts([part], self.timing, self._tcp_rate)
+            except TimingFailed as exc:
+                failure = exc
+        assert failure is not None
+        raise failure
+
+    def _cartesian(self, phase: Phase, target: np.ndarray, hook: control.Hook | None = None) -> control.CartesianRecord:
+        """Move the tcp along a straight line to ``target`` (3,) (m) by the Cartesian controller (timed within the
+        joints' limits); ``hook`` replaces the monitor."""
         rec = control.move_linear(self.robot, self.d, target, self.motion_config(), payload=self.payload,
                                   hook=self.step_hook(hook or self.monitor), noise=self.noise, loop=self.loop,
                                   joint_limits=self.line_limits)
@@ -656,10 +772,12 @@ class Arm:
             raise PhaseFailed(phase, f"the tcp stopped {rec.final_error_m * 1e3:.2f} mm from its target")
         return rec
 
-    def rise_until_clear(self, phase: Phase, checker_at: Callable[[float], CollisionChecker]) -> None:
+    def rise_until_clear(self, phase: Phase, checker_at: Callable[[float], CollisionChecker],
+                         ik: IKConfig | None = None) -> None:
         """Rise straight up in ``LIFT_STEP_M`` steps (up to ``MAX_RAISE_M``) until the arm clears everything by
         the planner's margin, as the next planned path needs (the object settled in the grip a little
-        differently from the plan, the place ended a little off).
+        differently from the plan, the place ended a little off). Each step is a straight move (:meth:`vertical`)
+        that touches nothing ``checker_at(0)`` forbids.
 
         It does not rise when the arm's links near its base are what is too close (:data:`PROXIMAL_GEOMS`): the
         next plan leaves from there towards ``home`` (:meth:`plan_segment`).
@@ -668,6 +786,7 @@ class Arm:
             PhaseFailed: still not clear at the highest step; the geoms are named.
         """
         checker = checker_at(self.cfg.planning_margin_m)
+        touching: CollisionChecker | None = None
         risen = 0.0
         while not checker.is_valid(self.q):
             pairs_now = checker.colliding_pairs(self.q)
@@ -682,7 +801,8 @@ class Arm:
                 raise PhaseFailed(phase, f"still within {self.cfg.planning_margin_m * 1e3:.0f} mm of something "
                                          f"after rising {risen:.2f} m: {pairs}")
             log.info("%s: within the planner's margin of something; rising %.2f m more", phase.value, LIFT_STEP_M)
-            self.vertical(phase, float(self.tcp_pose().translation[2]) + LIFT_STEP_M)
+            touching = touching or checker_at(0.0)
+            self.vertical(phase, float(self.tcp_pose().translation[2]) + LIFT_STEP_M, checker=touching, ik=ik)
             risen += LIFT_STEP_M
 
     def back_off(self) -> None:
@@ -703,4 +823,4 @@ class Arm:
             self.monitor.tolerate_contacts = False
 
 
-__all__ = ["LINE_TOLERANCE_M", "REFINED_LINE_STEP_M", "SUPPORT_MARGIN", "Arm", "StraightMove"]
+__all__ = ["LINE_TOLERANCE_M", "REFINED_LINE_STEP_M", "STRAIGHT_STEPS_M", "SUPPORT_MARGIN", "Arm", "StraightMove"]

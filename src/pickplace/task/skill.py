@@ -235,7 +235,7 @@ class PickPlaceSkill:
                 if aim is None:
                     return Phase.PLAN_APPROACH
             with self.arm.following(self.arm.tcp_pose().translation, aim.translation) as line:
-                self.arm.linear(Phase.DESCEND, aim.translation)
+                self.arm.linear(Phase.DESCEND, aim, checker=self.arm.free(0.0), ik=self.ik)
         self.out.approach_line_deviation_max_m = float(np.fmax(self.out.approach_line_deviation_max_m, line.max_m))
         want = self._grasp_on(self._object_pose()).translation  # where the grasp is, the object as it is
         off = float(np.linalg.norm(self.arm.tcp_pose().translation - want))
@@ -339,13 +339,19 @@ class PickPlaceSkill:
         motion (:meth:`_plan_carry`) and the lift is its first part: the checks below are made at the lift
         height, the arm moving on.
 
+        Otherwise the lift is a straight move of its own: a joint trajectory through its IK waypoints
+        (:meth:`Arm.plan_line`), or, where none can be built, a Cartesian move.
+
         If the object is heavier (or lighter) than believed by more than 20 %, the payload compensation is
         corrected with the measured mass (a recovery): a Cartesian lift that could not hold its height is
-        repeated once; a lift that runs on into the transport goes on with the corrected payload if the grip still
-        holds the rest of the motion at its speed, and otherwise stops there and plans the transport anew.
+        repeated once; a lift timed as a joint trajectory that ended more than ``PAYLOAD_ERROR_M`` off its
+        reference goes on from where it ended; a lift that runs on into the transport goes on with the corrected
+        payload if the grip still holds the rest of the motion at its speed, and otherwise stops there and plans the
+        transport anew.
         """
         assert self.configs is not None and self.arm.payload is not None
         through = blended = self.ctrl.blend_lift and self._plan_carry()
+        jointed = False  # a lift of its own, as a joint trajectory
         z_object0 = float(self._object_pose().translation[2])
         z_tcp0 = float(self.arm.tcp_pose().translation[2])
         self.monitor.allow_object_table = True  # until it leaves the table
@@ -379,6 +385,12 @@ class PickPlaceSkill:
             reached = True
         else:
             target_z = float(self.configs.targets.lift.translation[2])
+            tcp = self.arm.tcp_pose()
+            top = pin.SE3(tcp.rotation, np.array([*tcp.translation[:2], target_z]))
+            # a joint trajectory through the lift's IK waypoints, the table holding the object (and what the pads
+            # press it down with) at its start; the Cartesian controller only where none can be built
+            jointed = self.arm.plan_line(Phase.LIFT, top, self.arm.carrying(0.0, True),
+                                         self.arm.support_reserve(-self.observer.load_sample()[1]), self.ik)
 
             def lift() -> control.CartesianRecord:
                 rec = control.move_vertical(self.robot, self.d, target_z, self.arm.motion_config(),
@@ -389,27 +401,37 @@ class PickPlaceSkill:
                 return rec
 
             try:
-                rec = lift()
+                if jointed:
+                    self.arm.execute(Phase.LIFT, hook=hook)
+                else:
+                    rec = lift()
             finally:  # a slip aborts the move: still report what the pads felt
                 mass = measured_mass()
                 self.out.lift_load_n = mass * g if math.isfinite(mass) else 0.0
-            height_error, reached = rec.final_height_error_m, rec.reached
+            if jointed:  # the joint loop holds its end with a static error if the payload is off
+                assert self.arm.trajectory is not None
+                height_error = float(self.arm.tcp_pose().translation[2]) - \
+                    float(self.arm.tcp_at(self.arm.trajectory.end)[2])
+                reached = True
+            else:
+                height_error, reached = rec.final_height_error_m, rec.reached
         # the payload compensation is corrected where the object weighs 20 % off and the arm could not follow its
-        # reference for it: a Cartesian lift stopped short; a lift that runs on was more than PAYLOAD_ERROR_M off
+        # reference for it: a Cartesian lift stopped short; a joint trajectory was more than PAYLOAD_ERROR_M off
+        tracked = through or jointed
         off = math.isfinite(mass) and abs(mass / self.arm.payload.mass_kg - 1.0) > 0.2 and (
-            not reached or (through and abs(height_error) > PAYLOAD_ERROR_M))
+            not reached or (tracked and abs(height_error) > PAYLOAD_ERROR_M))
         if off and self.budget.used < self.budget.max_retries:
             self.budget.used += 1
             note = (f"LIFT: the {self.robot.scene.object.name} weighs {mass:.3f} kg, not "
                     f"{self.arm.payload.mass_kg:.3f} kg (the tcp " + (
-                        f"stopped {abs(height_error) * 1e3:.2f} mm short of the lift height" if not through else
+                        f"stopped {abs(height_error) * 1e3:.2f} mm short of the lift height" if not tracked else
                         f"was {abs(height_error) * 1e3:.2f} mm off its reference at the lift height") +
                     ") -> payload compensation corrected")
             self.out.recoveries.append(note)
             log.info("recovery: %s", note)
             self.arm.payload = dataclasses.replace(self.arm.payload, mass_kg=mass)
             self.arm.capacity = dataclasses.replace(self.arm.capacity, mass_kg=mass) if self.arm.capacity else None
-            if not through:
+            if not tracked:
                 rec = lift()
                 mass = measured_mass()
                 height_error, reached = rec.final_height_error_m, rec.reached
@@ -426,7 +448,7 @@ class PickPlaceSkill:
         if not reached:
             raise PhaseFailed(Phase.LIFT, f"the tcp stopped {abs(height_error) * 1e3:.2f} mm from the lift height "
                                           f"(the {name} weighed {mass:.3f} kg)")
-        if through and off:  # the payload compensation is that far off for the rest of the motion
+        if tracked and off:  # the payload compensation is that far off for the rest of the motion
             side = "below" if height_error < 0.0 else "above"
             raise PhaseFailed(Phase.LIFT, f"the tcp was {abs(height_error) * 1e3:.2f} mm {side} its reference at the "
                                           f"lift height (the {name} weighed {mass:.3f} kg, not the "
@@ -434,7 +456,7 @@ class PickPlaceSkill:
         came_up = not self.monitor.allow_object_table
         self.monitor.allow_object_table = False
         rise = float(self._object_pose().translation[2]) - z_object0
-        lifted = float(self.arm.tcp_pose().translation[2]) - z_tcp0 if blended else \
+        lifted = float(self.arm.tcp_pose().translation[2]) - z_tcp0 if blended or jointed else \
             target_z - float(self.configs.targets.grasp.translation[2])
         if abs(rise - lifted) > self.cfg.slip_tolerance_m:
             raise GraspFailed(f"the {name} rose {rise * 1e3:.1f} mm while the tcp rose {lifted * 1e3:.1f} mm")
@@ -448,7 +470,7 @@ class PickPlaceSkill:
         self.observer.expect_load(self.arm.payload.mass_kg)  # airborne: the hand carries its weight from now on
         self.arm.T_tcp_object = self.arm.tcp_pose().actInv(self._object_pose())  # as it sits in the hand
         if not through:
-            self.arm.rise_until_clear(Phase.LIFT, lambda margin: self.arm.carrying(margin, False))
+            self.arm.rise_until_clear(Phase.LIFT, lambda margin: self.arm.carrying(margin, False), self.ik)
         return Phase.PLAN_TRANSPORT
 
     def _plan_carry(self) -> bool:
@@ -617,8 +639,11 @@ class PickPlaceSkill:
                 self.arm.execute(Phase.DESCEND_PLACE)
             start, end = self.arm.tcp_pose().translation, place.translation
 
+            onto = self.arm.carrying(0.0, True)  # the object may touch the surface it is set on
+            reserve = self.arm.support_reserve()  # the table takes the object's weight at the end
+
             def move(hook: control.Hook) -> None:
-                self.arm.vertical(Phase.DESCEND_PLACE, float(place.translation[2]), hook)
+                self.arm.linear(Phase.DESCEND_PLACE, place, hook, onto, reserve, self.ik)
         with self.arm.following(start, end) as line:
             try:
                 move(self._set_down_hook())
@@ -691,7 +716,8 @@ class PickPlaceSkill:
         """Back the open hand off the released object by :data:`LOOK_BACK_OFF_M` along the approach, so that the
         camera sees the object again (RETRACT backs off that much less)."""
         log.info("RELEASE: %s; backing off %.0f mm to look again", why, LOOK_BACK_OFF_M * 1e3)
-        self.arm.linear(Phase.RELEASE, backed_off(self.arm.tcp_pose(), LOOK_BACK_OFF_M).translation)
+        self.arm.linear(Phase.RELEASE, backed_off(self.arm.tcp_pose(), LOOK_BACK_OFF_M), checker=self._leaving(),
+                        ik=self.ik)
         self._backed_off_m = LOOK_BACK_OFF_M
 
     def _place_errors(self, T_world_object: pin.SE3) -> tuple[float, float, float]:
@@ -718,12 +744,14 @@ class PickPlaceSkill:
         if self.ctrl.blend_retract and self._plan_retract(back):
             self.arm.execute(Phase.RETRACT)
             return Phase.DONE
+        leaving = self._leaving() if back > 0.0 or self.configs.targets.retreat_rise_m > 0.0 else None
         if back > 0.0:
-            self.arm.linear(Phase.RETRACT, backed_off(self.arm.tcp_pose(), back).translation)
+            self.arm.linear(Phase.RETRACT, backed_off(self.arm.tcp_pose(), back), checker=leaving, ik=self.ik)
         if self.configs.targets.retreat_rise_m > 0.0:
             rise = self.configs.targets.retreat_rise_m
-            self.arm.vertical(Phase.RETRACT, float(self.arm.tcp_pose().translation[2]) + rise)
-        self.arm.rise_until_clear(Phase.RETRACT, self.arm.free)
+            self.arm.vertical(Phase.RETRACT, float(self.arm.tcp_pose().translation[2]) + rise, checker=leaving,
+                              ik=self.ik)
+        self.arm.rise_until_clear(Phase.RETRACT, self.arm.free, self.ik)
         self.arm.plan_segment("return", self.arm.free, self.robot.home_q)
         self.arm.execute(Phase.RETRACT)
         return Phase.DONE
@@ -763,6 +791,13 @@ class PickPlaceSkill:
             log.info("RETRACT: the back-off and the way home cannot be one motion (%s): one after the other", exc)
             return False
         return True
+
+    def _leaving(self) -> CollisionChecker:
+        """What the open hand may not touch as it leaves the object it let go of: anything but that object (the
+        straight moves away from it, checked at contact)."""
+        policy = CollisionPolicy(margin_m=0.0, allow_gripper_object=True,
+                                 finger_m=gripper.finger_travel(self.robot, self.d))
+        return CollisionChecker(self.robot, policy, world=self.arm.observer.world())
 
     def run(self) -> MachineOutcome:
         """Run the phases to DONE or FAILED; never raises for a failure of the task itself."""
@@ -872,7 +907,8 @@ class PickPlaceSkill:
 
         log.info("recovery: setting the %s back down where it was picked", robot.scene.object.name)
         with contextlib.suppress(_SetDown):  # the table carries it: no need to go further
-            self.arm.vertical(Phase.PLAN_TRANSPORT, z_grasp + PLACE_DROP_M, hook)
+            self.arm.vertical(Phase.PLAN_TRANSPORT, z_grasp + PLACE_DROP_M, hook, self.arm.carrying(0.0, True),
+                              self.arm.support_reserve(), self.ik)
         monitor.holding = False
         monitor.allow_object_table = True
         self.arm.payload = None
@@ -888,7 +924,8 @@ class PickPlaceSkill:
         if not self.arm.hold_until(self.arm.q, cleared, cfg.release_timeout_s, min_s=cfg.poll_s):
             raise PhaseFailed(Phase.PLAN_TRANSPORT, f"the pads did not clear the {robot.scene.object.name} set back "
                                                     f"down within {cfg.release_timeout_s:g} s")
-        self.arm.linear(Phase.PLAN_TRANSPORT, backed_off(self.arm.tcp_pose(), CLEARANCE_M).translation)
+        self.arm.linear(Phase.PLAN_TRANSPORT, backed_off(self.arm.tcp_pose(), CLEARANCE_M), checker=self._leaving(),
+                        ik=self.ik)
         monitor.allow_hand_object = False
 
     def _still_held(self) -> bool:
@@ -917,8 +954,8 @@ class PickPlaceSkill:
         self.observer.released()
         self.arm.hold(self.arm.q, 0.15)
         z_safe = scene.table_height_m + float(np.max(scene.object.geometry().extent_m)) + CLEARANCE_M
-        if float(self.arm.tcp_pose().translation[2]) < z_safe:
-            self.arm.vertical(Phase.RECOVER, z_safe)
+        if float(self.arm.tcp_pose().translation[2]) < z_safe:  # the object may be anywhere, falling: unchecked
+            self.arm.vertical(Phase.RECOVER, z_safe, ik=self.ik)
         name = scene.object.name
         self.monitor.object_falling = True  # the arm waits; whatever the object lands on, it came to it
         try:
