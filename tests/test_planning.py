@@ -427,3 +427,36 @@ def test_pull_reports_an_invalid_edge_and_skips_known_ones() -> None:
     free = np.array([[0.0, 0.0], [0.3, 0.5], [0.6, -0.5], [0.9, 0.5], [1.2, 0.0]])
     taut, bad, _ = pull(BoxWorld([("far", [5.0, 5.0], [6.0, 6.0])]), free, 0.01)
     np.testing.assert_array_equal(taut, free[[0, -1]])
+
+
+class StoppingCountingWorld(StoppingWorld):
+    """A StoppingWorld that records every configuration it checks (up to the first invalid one of a batch)."""
+
+    def __init__(self, boxes: list[tuple[str, list[float], list[float]]]) -> None:
+        super().__init__(boxes)
+        self.seen: list[np.ndarray] = []
+
+    def first_invalid(self, qs: np.ndarray) -> int:
+        qs = np.atleast_2d(qs)
+        k = super().first_invalid(qs)
+        self.seen.extend(qs if k < 0 else qs[: k + 1])
+        return k
+
+
+def test_pull_checks_no_configuration_twice_and_checks_what_it_keeps_at_the_resolution() -> None:
+    """The pull looks at candidates coarsely, farthest first, then checks the one it keeps at the resolution: each
+    configuration is checked at most once, the kept segments' every configuration at the resolution is among those
+    checked, and the far waypoints hidden behind a wall thinner than the coarse spacing (0.015 against 0.08 rad)
+    are not kept."""
+    world = StoppingCountingWorld([("thin", [1.02, 0.2], [1.035, 2.0])])  # hides the far waypoints from the start
+    path = np.array([[0.0, 0.0], [0.6, 0.1], [1.2, 0.1], [1.6, 0.5], [2.0, 1.0]])
+    taut, bad, _ = pull(world, path, 0.01)
+    assert bad == -1 and taut is not None
+    seen = np.array(world.seen)
+    assert len(np.unique(seen, axis=0)) == len(seen)  # nothing checked twice
+    for qa, qb in itertools.pairwise(taut):
+        steps = math.ceil(float(np.abs(qb - qa).max()) / 0.01)
+        for k in range(1, steps):
+            assert np.any(np.all(np.isclose(seen, qa + k / steps * (qb - qa), rtol=0.0, atol=1e-12), axis=1))
+    assert_truly_valid(world, taut)
+    assert not segment_valid(world, path[0], path[4], 0.01)  # (the far waypoint is hidden, by 0.015 rad)

@@ -34,6 +34,7 @@ import functools
 import logging
 import math
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from typing import Protocol
 
@@ -318,16 +319,17 @@ def _inputs(checker: ValidityChecker, q_start: np.ndarray, q_goal: np.ndarray, l
             upper: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Copy the inputs to float arrays and validate them; raise PlanningFailed naming what is wrong."""
     arrays = [np.array(a, dtype=float) for a in (q_start, q_goal, lower, upper)]
-    n = arrays[2].size
-    for name, a in zip(("start", "goal", "lower bounds", "upper bounds"), arrays, strict=True):
-        if a.shape != (n,) or not np.isfinite(a).all():
-            raise PlanningFailed(f"{name} must be a finite vector of shape ({n},), got {a.tolist()}")
     start, goal, lo, hi = arrays
-    if n == 0 or np.any(lo >= hi):
+    n = lo.size
+    if any(a.shape != (n,) for a in arrays) or not np.isfinite(arrays).all():
+        for name, a in zip(("start", "goal", "lower bounds", "upper bounds"), arrays, strict=True):
+            if a.shape != (n,) or not np.isfinite(a).all():
+                raise PlanningFailed(f"{name} must be a finite vector of shape ({n},), got {a.tolist()}")
+    if n == 0 or (lo >= hi).any():
         raise PlanningFailed(f"joint bounds must satisfy lower < upper, got {lo.tolist()} / {hi.tolist()}")
     for end, q in (("start", start), ("goal", goal)):
-        out = np.flatnonzero((q < lo) | (q > hi))
-        if out.size:
+        if (q < lo).any() or (q > hi).any():
+            out = np.flatnonzero((q < lo) | (q > hi))
             what = "; ".join(f"joint {j} = {q[j]:.4f} rad not in [{lo[j]:.4f}, {hi[j]:.4f}]" for j in out)
             raise PlanningFailed(f"{end} configuration is outside the joint bounds: {what}")
     for end, q in (("start", start), ("goal", goal)):
@@ -529,23 +531,6 @@ class _Tree:
         return len(gone)
 
 
-def _first_invalid_midpoint(checker: ValidityChecker, path: np.ndarray, edges: list[int], res: float) -> int:
-    """Check the first point that a check at ``res`` visits inside each of the given edges of path (K, n) (the
-    midpoint, as :func:`_fractions` orders them: step ``steps // 2`` of ``steps``), all in one batch, stopping at the
-    first invalid one. Returns the index into ``edges`` of the edge found invalid, or -1."""
-    if not edges:
-        return -1
-    qa = path[edges]
-    delta = path[np.add(edges, 1)] - qa
-    steps = np.ceil(np.abs(delta).max(axis=1) / res)
-    inner = np.flatnonzero(steps > 1)  # (an edge of one step has no interior)
-    if inner.size == 0:
-        return -1
-    half = (np.floor(steps[inner] / 2) / steps[inner])[:, None]
-    bad = _first_invalid(checker, qa[inner] + half * delta[inner])
-    return -1 if bad < 0 else int(inner[bad])
-
-
 def _rrt_connect(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray, lo: np.ndarray, hi: np.ndarray,
                  cfg: PlannerConfig, rng: np.random.Generator, t0: float
                  ) -> tuple[np.ndarray, np.ndarray, int, int, float]:
@@ -576,7 +561,7 @@ def _rrt_connect(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray, 
     def extend(tree: _Tree, i: int, target: np.ndarray, dist: float) -> tuple[int, bool]:
         """One step from node i towards target: (new node or -1 if its configuration is invalid, target reached)."""
         if dist <= step:
-            q_new, reached = target.copy(), True
+            q_new, reached = target, True  # (add copies it into the tree)
         else:
             q_new, reached = tree.nodes[i] + (target - tree.nodes[i]) * (step / dist), False
         if not checker.is_valid(q_new):
@@ -615,15 +600,11 @@ def _rrt_connect(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray, 
         path = np.vstack([trees[0].nodes[a], trees[1].nodes[b[1:]]])
         # First the midpoint of every edge not looked at yet: a path through an obstacle is usually given away by
         # one, for a few checks, before pulling spends checks on segments that would be thrown away with it.
-        fresh = [e for e in range(len(path) - 1) if not segs.started(path[e], path[e + 1])]
-        bad = _first_invalid_midpoint(checker, path, fresh, res)
-        if bad >= 0:
-            e = fresh[bad]
+        e = segs.first_invalid_midpoint(path)
+        if e >= 0:
             tree, c = (trees[0], a[e + 1]) if e + 1 < len(a) else (trees[1], b[e + 1 - len(a)])
             tree.cut(c)
             continue
-        for e in fresh:
-            segs.note(path[e], path[e + 1], 1)
         t_met = time.perf_counter()
         # (start -> goal is the segment plan() found blocked)
         taut, short, bad = _pull_and_shortcut(segs, path, cfg, draws, blocked={(0, len(path) - 1)})
@@ -656,6 +637,8 @@ class _Segments:
         self.done: dict[bytes, int] = {}  # interior points found valid, in coarse-to-fine order
         self.full: set[bytes] = set()  # every interior point valid (or a piece of such a segment)
         self.blocked: set[bytes] = set()  # an interior point found invalid
+        first = getattr(checker, "first_invalid", None)
+        self._first_invalid = first if first is not None else functools.partial(_first_invalid, checker)
 
     def check(self, qa: np.ndarray, qb: np.ndarray, coarse: bool) -> bool:
         """Whether the segment qa (n,) -> qb (n,), whose ends are valid, passes: all its interior points, or with
@@ -671,7 +654,7 @@ class _Segments:
         want = min(total, _coarse_count(steps, self.gap)) if coarse else total
         done = self.done.get(key, 0)
         if done < want:
-            if _first_invalid(self.checker, qa + _fractions(steps)[2 + done: 2 + want] * delta) >= 0:
+            if self._first_invalid(qa + _fractions(steps)[2 + done: 2 + want] * delta) >= 0:
                 self.blocked.add(key)
                 return False
             self.done[key] = done = want
@@ -679,19 +662,32 @@ class _Segments:
             self.full.add(key)
         return True
 
-    def started(self, qa: np.ndarray, qb: np.ndarray) -> bool:
-        """Whether anything of qa -> qb was checked (or it is known valid or blocked)."""
-        key = qa.tobytes() + qb.tobytes()
-        return key in self.done or key in self.full or key in self.blocked
-
-    def note(self, qa: np.ndarray, qb: np.ndarray, count: int) -> None:
-        """Record that the first ``count`` interior points of qa -> qb (coarse to fine) were found valid."""
-        key = qa.tobytes() + qb.tobytes()
-        total = math.ceil(float(np.abs(qb - qa).max()) / self.res) - 1
-        if count >= total:
-            self.full.add(key)
-        else:
-            self.done[key] = max(self.done.get(key, 0), count)
+    def first_invalid_midpoint(self, path: np.ndarray) -> int:
+        """Check the first interior point (the midpoint, as :func:`_fractions` orders them: step ``steps // 2`` of
+        ``steps``) of every edge of path (K, n) not looked at yet, all in one batch, stopping at the first invalid
+        one; record the others. Returns the index of the edge found invalid (then recorded as blocked), or -1."""
+        keys = [path[e].tobytes() + path[e + 1].tobytes() for e in range(len(path) - 1)]
+        fresh = [e for e, key in enumerate(keys)
+                 if key not in self.done and key not in self.full and key not in self.blocked]
+        if not fresh:
+            return -1
+        qa = path[fresh]
+        delta = path[np.add(fresh, 1)] - qa
+        steps = np.ceil(np.abs(delta).max(axis=1) / self.res)
+        inner = np.flatnonzero(steps > 1)  # (an edge of one step has no interior)
+        if inner.size:
+            half = np.floor(steps[inner] / 2) / steps[inner]
+            bad = self._first_invalid(qa[inner] + half[:, None] * delta[inner])
+            if bad >= 0:
+                e = fresh[int(inner[bad])]
+                self.blocked.add(keys[e])
+                return e
+        for e, n in zip(fresh, steps.tolist(), strict=True):
+            if n <= 2:  # the midpoint was the whole interior (or there is none)
+                self.full.add(keys[e])
+            else:
+                self.done[keys[e]] = 1
+        return -1
 
     def complete(self, qa: np.ndarray, qb: np.ndarray) -> bool:
         """:meth:`check` of every interior point."""
@@ -714,13 +710,15 @@ def pull(checker: ValidityChecker, path: np.ndarray, resolution_rad: float, know
          blocked: set[tuple[int, int]] | frozenset[tuple[int, int]] = frozenset()
          ) -> tuple[np.ndarray | None, int, list[int]]:
     """Pull a path (K, n) whose waypoints are valid (its edges need not be) taut: from each kept waypoint i, jump to
-    the first of the later waypoints K - 1, i + (K - 1 - i) / 2, i + (K - 1 - i) / 4, ..., i + 1 that the straight
-    segment from i reaches validly at ``resolution_rad``.
+    the farthest later waypoint that the straight segment from i reaches validly at ``resolution_rad``.
 
-    An invalid segment usually shows after a few checks (:func:`segment_valid` checks coarse to fine); a valid one
-    costs its full length, and every valid segment found is kept: the checks are spent on the returned path. The
-    candidates halve their distance (rather than trying every waypoint) so that a path with many waypoints past
-    thin obstacles, which only show at the finest spacing, costs O(K log K) segment checks, not O(K^2).
+    The later waypoints are first looked at coarsely (every :data:`_COARSE_GAP` steps of the resolution), farthest
+    first: an invalid segment usually shows after a few checks (coarse to fine), so the farthest candidate that passes
+    costs little to find; it is then checked at the resolution, and kept. A valid segment costs its full length,
+    and every valid segment found is kept: the checks are spent on the returned path. When the candidate fails at the
+    resolution (an obstacle thinner than the coarse spacing), the later waypoints i + (K - 1 - i), i + (K - 1 - i) / 2,
+    i + (K - 1 - i) / 4, ..., i + 1 are tried in turn at the resolution instead, so that a path with many waypoints
+    past such obstacles costs O(K log K) segment checks at the resolution, not O(K^2).
 
     Args:
         checker: The validity checker.
@@ -737,25 +735,32 @@ def pull(checker: ValidityChecker, path: np.ndarray, resolution_rad: float, know
     for e, ok in enumerate(known or []):
         if ok:
             segs.set_full(path[e], path[e + 1])
-    taut, bad = _pull(segs, path, coarse=False, blocked=blocked)
+    taut, bad = _pull(segs, path, blocked)
     valid = [e for e in range(len(path) - 1) if not (known and known[e]) and segs.is_full(path[e], path[e + 1])]
     return taut, bad, valid
 
 
-def _pull(segs: _Segments, path: np.ndarray, coarse: bool,
+def _pull(segs: _Segments, path: np.ndarray,
           blocked: set[tuple[int, int]] | frozenset[tuple[int, int]] = frozenset()) -> tuple[np.ndarray | None, int]:
-    """:func:`pull` on a segment record, checking each candidate coarsely if ``coarse``. Returns (the taut path or
-    None, the index of the edge of ``path`` found blocked or -1)."""
+    """:func:`pull` on a segment record: from each kept waypoint i, the later waypoints are looked at coarsely,
+    farthest first, and the farthest that passes is then checked at the resolution; if that fails (an obstacle
+    thinner than the coarse spacing), waypoint i goes on in :func:`pull`'s order (halving distances). Returns (the
+    taut path or None, the index of the edge of ``path`` found blocked or -1)."""
     k_last = len(path) - 1
     out, i = [0], 0
     while i < k_last:
-        gap, j = k_last - i, -1
-        while gap >= 1:
+        j = -1
+        for cand in range(k_last, i, -1):  # farthest first, coarsely: a blocked candidate costs a few checks
+            if (i, cand) not in blocked and segs.check(path[i], path[cand], True):
+                if segs.complete(path[i], path[cand]):
+                    j = cand
+                break
+        gap = k_last - i
+        while j < 0 and gap >= 1:
             cand = i + gap
             gap = 0 if gap == 1 else (gap + 1) // 2
-            if (i, cand) not in blocked and segs.check(path[i], path[cand], coarse):  # waypoints are valid
+            if (i, cand) not in blocked and segs.complete(path[i], path[cand]):  # waypoints are valid
                 j = cand
-                break
         if j < 0:  # even the edge to the next waypoint is invalid
             return None, i
         out.append(j)
@@ -772,36 +777,34 @@ def _shortcut_pass(segs: _Segments, path: np.ndarray, config: PlannerConfig, dra
                    coarse: bool) -> np.ndarray:
     """The random shortcuts (``draws`` (m, 2), sorted pairs in [0, 1)) and the greedy waypoint removal of
     :func:`shortcut` on a path whose segments ``segs`` passed, each candidate checked coarsely if ``coarse``."""
-    checker = segs.checker
+    first_invalid = segs._first_invalid
     path = _without_repeats(np.array(path, dtype=float))
     min_gain, ratio = max(config.shortcut_min_gain_rad, _EPS), 1.0 + config.shortcut_min_gain_ratio
     k = 0  # the next draw; the draws before it are spent
     while k < len(draws) and len(path) > 2:
         # The remaining draws against the current path at once; the path only changes when a shortcut is taken,
         # and the draws after that one are then looked at on the new path: the outcome of taking them one by one.
-        steps = np.diff(path, axis=0)
+        steps = path[1:] - path[:-1]
         seg_len = np.sqrt(np.einsum("ij,ij->i", steps, steps))
-        cum = np.concatenate([[0.0], np.cumsum(seg_len)])
+        cum = np.concatenate(([0.0], seg_len.cumsum()))
         arc = draws[k:] * cum[-1]  # (m, 2) arc lengths
-        ij = np.minimum(np.searchsorted(cum, arc, side="right") - 1, len(path) - 2)
-        frac = (arc - cum[ij]) / seg_len[ij]
-        p1 = path[ij[:, 0]] + steps[ij[:, 0]] * frac[:, :1]
-        p2 = path[ij[:, 1]] + steps[ij[:, 1]] * frac[:, 1:]
-        gap = p2 - p1
-        direct = np.sqrt(np.einsum("ij,ij->i", gap, gap)) * ratio
-        worth = np.flatnonzero((ij[:, 0] != ij[:, 1]) & (direct <= arc[:, 1] - arc[:, 0] - min_gain))
+        ij = np.minimum(cum.searchsorted(arc, side="right") - 1, len(path) - 2)
+        pts = path[ij] + steps[ij] * ((arc - cum[ij]) / seg_len[ij])[:, :, None]  # (m, 2, n): p1, p2
+        gap = pts[:, 1] - pts[:, 0]
+        worth = ((ij[:, 0] != ij[:, 1])
+                 & (np.sqrt(np.einsum("ij,ij->i", gap, gap)) * ratio <= arc[:, 1] - arc[:, 0] - min_gain))
         taken = -1
-        for c in worth.tolist():
+        for c in np.flatnonzero(worth).tolist():
             # path[i] -> p1 and p2 -> path[j + 1] are pieces of path segments; only p1 -> p2 is new. (Its ends
             # last: they lie on segments that passed, so they are rarely what is invalid.)
-            if segs.check(p1[c], p2[c], coarse) and checker.all_valid(np.stack([p1[c], p2[c]])):
+            if segs.check(pts[c, 0], pts[c, 1], coarse) and first_invalid(pts[c]) < 0:
                 taken = c
                 break
         if taken < 0:
             break
         k += taken + 1
         i, j = ij[taken].tolist()
-        a, b = p1[taken], p2[taken]
+        a, b = pts[taken]
         # A piece of a segment checked at the resolution is checked at it too: any point on it lies as close to a
         # checked configuration as before.
         if segs.is_full(path[i], path[i + 1]):
@@ -814,7 +817,7 @@ def _shortcut_pass(segs: _Segments, path: np.ndarray, config: PlannerConfig, dra
         if b.tobytes() != path[j + 1].tobytes():
             pieces.append(b[None])
         pieces.append(path[j + 1:])
-        path = np.vstack(pieces)
+        path = np.concatenate(pieces)
     removed = True
     while removed:
         removed = False
@@ -853,7 +856,7 @@ def _pull_and_shortcut(segs: _Segments, path: np.ndarray, config: PlannerConfig,
     """
     taut = path
     if pull_first:
-        pulled, bad = _pull(segs, path, False, blocked)
+        pulled, bad = _pull(segs, path, blocked)
         if pulled is None:
             return None, None, bad
         taut = pulled
@@ -910,7 +913,7 @@ def plan(checker: ValidityChecker, q_start: np.ndarray, q_goal: np.ndarray, lowe
         logger.debug("plan: direct segment is valid (cost %.4f rad)", cost)
         return PlanResult(path, path, cost, cost, 0, 2, time.perf_counter() - t0, 0.0, PlanStatus.DIRECT)
     failures: list[str] = []
-    for attempt in retry_configs(cfg):
+    for attempt in _retries(cfg):
         try:
             raw, short, used, n, t1, t2 = _search_and_shortcut(checker, start, goal, lo, hi, attempt)
             break
@@ -938,13 +941,18 @@ def retry_configs(cfg: PlannerConfig) -> list[PlannerConfig]:
     """The searches :func:`plan` tries in turn: ``cfg``, then ``cfg.retries`` more, each with the next seed,
     ``cfg.retry_growth`` times the time budget and iterations of the one before (iterations capped at the
     field's bound) and twice its box margin."""
-    out = [cfg]
+    return list(_retries(cfg))
+
+
+def _retries(cfg: PlannerConfig) -> Iterator[PlannerConfig]:
+    """:func:`retry_configs` one at a time (a retry's config is only made if it is needed)."""
+    last = cfg
+    yield last
     for _ in range(cfg.retries):
-        last = out[-1]
-        out.append(replace(last, seed=last.seed + 1, time_budget_s=last.time_budget_s * cfg.retry_growth,
-                           iterations=min(int(last.iterations * cfg.retry_growth), _MAX_ITERATIONS),
-                           box_margin_rad=min(2.0 * last.box_margin_rad, _FLOAT_FIELDS["box_margin_rad"][1])))
-    return out
+        last = replace(last, seed=last.seed + 1, time_budget_s=last.time_budget_s * cfg.retry_growth,
+                       iterations=min(int(last.iterations * cfg.retry_growth), _MAX_ITERATIONS),
+                       box_margin_rad=min(2.0 * last.box_margin_rad, _FLOAT_FIELDS["box_margin_rad"][1]))
+        yield last
 
 
 def _search_and_shortcut(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray, lo: np.ndarray,
