@@ -528,7 +528,7 @@ def arm_inertia(arm: ArmModel, q: np.ndarray, finger_m: float = 0.0) -> np.ndarr
     qp[:N_ARM] = q
     qp[N_ARM:] = finger_m
     M = pin.crba(arm.model, arm.data, qp)[:N_ARM, :N_ARM]
-    return np.triu(M) + np.triu(M, 1).T  # crba fills the upper triangle
+    return np.where(_UPPER, M, M.T)  # crba fills the upper triangle
 
 
 def joint_impedance(
