@@ -174,6 +174,40 @@ def test_checkers_in_the_same_state_share_a_model_and_re_aiming_one_leaves_the_o
     np.testing.assert_array_equal(fresh.are_valid(qs), before)
 
 
+def test_checkers_sharing_one_data_answer_as_checkers_on_their_own_when_used_in_turn(
+        robot: model.Robot, configs: GraspConfigurations) -> None:
+    """The checkers of a scene share one MjData, each loading its own state (world, fingers) when another used it
+    last: used in turn, configuration by configuration, they answer as checkers that each have data of their own."""
+    d = robot.make_data()
+    d.mocap_pos[robot.mj.body(model.INTRUDER).mocapid[0]] = [0.45, 0.0, 0.5]
+    rel = configs.targets.T_tcp_object
+    makers = [lambda: CollisionChecker(robot, CollisionPolicy(margin_m=0.01), world=d),
+              lambda: CollisionChecker(robot, CollisionPolicy(margin_m=0.01)),
+              lambda: CollisionChecker(robot, CollisionPolicy(margin_m=0.01, object_held=True,
+                                                              finger_m=configs.held_finger_m), T_tcp_object=rel),
+              lambda: CollisionChecker(robot, CollisionPolicy(margin_m=0.0, object_held=True, finger_m=0.0),
+                                       T_tcp_object=rel * pin.SE3(np.eye(3), np.array([0.0, 0.0, 0.03])))]
+    alone = []
+    for make in makers:
+        collision._shared_data.cache_clear()  # (each of these gets data of its own)
+        alone.append(make())
+    collision._shared_data.cache_clear()
+    shared = [make() for make in makers]
+    assert len({id(c._d) for c in shared}) == 1 and len({id(c._d) for c in alone}) == len(alone)
+    qs = robot.home_q + np.random.default_rng(17).normal(0.0, 0.8, (200, 6))
+    for q in qs:
+        for a, b in zip(alone, shared, strict=True):
+            assert a.is_valid(q) == b.is_valid(q)
+    ref = [a.are_valid(qs) for a in alone]
+    assert len({r.tobytes() for r in ref}) == len(ref)  # (the four differ: the test can tell them apart)
+    for k in range(3):
+        for a, b in zip(ref, shared, strict=True):
+            np.testing.assert_array_equal(b.are_valid(qs[k::3]), a[k::3])
+    shared[0].set_world(robot.make_data())  # the intruder parked again: as the second one
+    np.testing.assert_array_equal(shared[0].are_valid(qs), ref[1])
+    np.testing.assert_array_equal(shared[1].are_valid(qs), ref[1])
+
+
 def test_policy_validation() -> None:
     with pytest.raises(ConfigError, match=r"^collision\.margin_m = -0\.01 is invalid"):
         CollisionPolicy(margin_m=-0.01)
