@@ -8,7 +8,7 @@ import pytest
 
 from pickplace.grasping.hold import HoldResult, hold_test
 from pickplace.robot import model
-from pickplace.robot.gripper import GripperGeometry
+from pickplace.robot.gripper import GripperGeometry, closing_speed_m_s, command
 from pickplace.world.config import SceneConfig
 
 SLIP_M = 0.001
@@ -83,6 +83,28 @@ def test_tcp_is_midway_between_the_pads(robot: model.Robot, finger: float) -> No
 # --------------------------------------------------------------------------- #
 # hold test
 # --------------------------------------------------------------------------- #
+
+
+def test_the_fingers_close_together(robot: model.Robot) -> None:
+    """The servo drives both fingers through a tendon that averages them (half its force on each), so closing on
+    nothing neither finger trails the other; a servo on one finger, the other following through the coupling, left
+    it 1 mm behind at 1/3 m/s, and the leading pad met the object alone and pushed the held arm aside."""
+    m, h = robot.mj, robot.handles
+    assert m.actuator_trntype[h.gripper_actuator] == mujoco.mjtTrn.mjTRN_TENDON
+    d = robot.make_data()
+    mujoco.mj_forward(m, d)
+    command(robot, d, closed=True)
+    lags, speeds = [], []
+    for _ in range(200):
+        d.ctrl[h.arm_actuators] = d.qfrc_bias[h.arm_dof]  # the arm held up by gravity compensation
+        mujoco.mj_step(m, d)
+        left, right = d.qpos[h.finger_qpos]
+        if 0.005 < left < 0.035:
+            lags.append(abs(left - right))
+            speeds.append(float(d.qvel[h.finger_dof[0]]))
+    print(f"\nfree closing at {np.median(speeds):.3f} m/s: the fingers {max(lags) * 1e6:.3f} um apart at most")
+    assert np.median(speeds) == pytest.approx(closing_speed_m_s(robot), rel=0.05)
+    assert max(lags) < 1e-6
 
 
 def test_hold_default_scene(robot: model.Robot) -> None:

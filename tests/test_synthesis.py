@@ -413,6 +413,24 @@ def test_rank_prefers_margin_and_centred_grasps(synth) -> None:
     assert steps == sorted(steps)
 
 
+def test_grasps_whose_pads_meet_the_object_together_rank_first(synth) -> None:
+    """Closing both pads alike, a grasp whose surface stands proud in front of one pad's contact only (the mug's
+    handle bar met on its flank) has that pad meet the object first, pushing it alone: such grasps rank after those
+    whose pads meet it together (every grasp of a box, a can, a ball does)."""
+    for name in ("cube", "sugar_box", "soda_can", "tennis_ball", "l_bracket"):
+        assert max(c.touch_lag_m for c in synth(name)) < 1e-6, name
+    cands = synth("mug")
+    lags = np.array([c.touch_lag_m for c in cands])
+    print(f"\nmug: {len(cands)} grasps, {np.sum(lags > 1e-3)} with one pad meeting it over 1 mm before the other "
+          f"(up to {lags.max() * 1e3:.2f} mm)")
+    assert lags.max() > 1e-3 and np.any(lags < 1e-4)
+    lagging = int(np.sum(lags > 1e-3))
+    ranked = rank(cands)
+    assert all(c.touch_lag_m > 1e-3 for c in ranked[len(ranked) - lagging:])  # after every other grasp
+    unweighted = rank(cands, RankWeights(touch_lag=0.0))
+    assert any(c.touch_lag_m > 1e-3 for c in unweighted[: len(ranked) - lagging])  # (they did not, unweighted)
+
+
 def test_extra_cost_reorders(synth) -> None:
     cands = rank(synth("cube"))
     best, worst = cands[0], cands[-1]

@@ -38,7 +38,7 @@ IDEAL_CLOSING_SPEED_M_S = 40.0 / 120.0
 ROBOTIQ_2F85_MAX_CLOSING_SPEED_M_S = 0.150
 ROBOTIQ_2F85_MIN_GRIP_FORCE_N = 20.0
 ROBOTIQ_2F85_MAX_GRIP_FORCE_N = 235.0
-#: Time constant (s) of the equality through which the mirrored finger follows the driven one, as built.
+#: Time constant (s) of the equality that keeps the two fingers symmetric, as built.
 IDEAL_COUPLING_TIMECONST_S = 0.005
 #: A linkage gripper's (the 2F-85's) fingers are coupled rigidly: the stiffest the soft constraint stays stable
 #: at, two physics steps of 1 ms (s).
@@ -55,9 +55,10 @@ class GripperConfig:
     damping to ``grip_force_n / closing_speed_m_s`` per finger; a force above the built one scales the servo's
     stiffness with it, so that it still saturates as soon as the fingers stop 8 mm short of the closed target.
 
-    The mirrored finger follows the driven one through a soft equality constraint; under the squeeze it lags
-    by the constraint's compliance (about 0.5 mm at 20 N with the built 5 ms), which shifts the grip's centre
-    and pushes the hand sideways against an object the table holds. A linkage drive has no such lag.
+    The servo drives the fingers' mean travel (a tendon, half its force on each finger), so they close together
+    and squeeze a centred object equally; a soft equality constraint keeps them symmetric about the tcp, and an
+    object off centre meets one pad first and is pushed by it against that constraint's compliance until the
+    other arrives. A linkage drive is stiffer.
 
     Attributes:
         closing_speed_m_s: Speed of each finger (pad) closing or opening freely (m/s).
@@ -175,7 +176,7 @@ class GripperGeometry:
         m, h = robot.mj, robot.handles
         d = mujoco.MjData(m)
         pad = int(h.pad_geoms[0])
-        travel = float(m.jnt_range[m.actuator_trnid[h.gripper_actuator, 0], 1])
+        travel = float(m.jnt_range[m.dof_jntid[h.finger_dof[0]], 1])  # the servo drives both fingers' mean
 
         def inner_face(q: float) -> float:
             d.qpos[h.finger_qpos] = q
