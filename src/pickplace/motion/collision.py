@@ -138,6 +138,7 @@ class CollisionChecker:
         self._reach = family.reach(self._held_pose[0])
         self._far = np.zeros(self._m.nbody, dtype=bool)
         self.far_bodies = 0
+        self._held_changed = False
         self._update_model()
 
     def set_world(self, d: mujoco.MjData) -> None:
@@ -172,6 +173,7 @@ class CollisionChecker:
             self._shared.owner = None  # (reload)
         self._held_pose = self._family.held_pose(T_tcp_object)
         self._reach = self._family.reach(self._held_pose[0])  # the held object moved
+        self._held_changed = True
         self._update_model()
 
     def reach_m(self) -> float:
@@ -196,6 +198,7 @@ class CollisionChecker:
         unbounded ``geom_rbound`` of 0) always stay on. Costs one ``mj_kinematics`` and a few array operations.
         """
         family = self._family
+        far = self._far
         if self._cull_far and family.cull_geoms.size:
             if self._shared.owner is not self:
                 self._load()
@@ -206,10 +209,9 @@ class CollisionChecker:
             nearest = np.full(m.nbody, np.inf)
             np.minimum.at(nearest, family.cull_bodies, gap)
             far = np.isfinite(nearest) & (nearest > self._reach)  # (inf: no geom that may be switched off)
-            if not np.array_equal(far, self._far):
-                self._far = far
-                self.far_bodies = int(far.sum())
-        self._m = family.variant(self._held_pose, self._far)
+        if self._m is family.model or self._held_changed or not np.array_equal(far, self._far):
+            self._far, self.far_bodies, self._held_changed = far, int(far.sum()), False
+            self._m = family.variant(self._held_pose, far)
 
     # ------------------------------------------------------------------ #
     # The loops below repeat _place inline: a check costs a few µs, so the Python around it matters.
