@@ -17,7 +17,7 @@ from pickplace.grasping.configurations import GraspConfigurations
 from pickplace.motion import control
 from pickplace.motion.collision import CollisionChecker, CollisionPolicy
 from pickplace.motion.control import ControlConfig, Payload
-from pickplace.motion.loop import ServoGains
+from pickplace.motion.loop import ERROR_CHECK_STEPS, ServoGains
 from pickplace.motion.timing import TimingConfig, retime
 from pickplace.robot import gripper
 from pickplace.robot.model import Robot
@@ -511,3 +511,21 @@ def test_servo_gains_are_restored_when_a_hook_raises(robot: Robot) -> None:
     assert seen[0] == pytest.approx(ControlConfig().joint_kp[0])  # the servo ran
     np.testing.assert_array_equal(robot.mj.actuator_gainprm[h.arm_actuators, 0], 1.0)
     np.testing.assert_array_equal(robot.mj.actuator_biasprm[h.arm_actuators, :3], 0.0)
+
+
+def test_the_servos_joint_error_check_names_the_first_state_past_the_bound(robot: Robot) -> None:
+    """The joint servos' loop checks every step's joint error, on the tape every few steps: a state knocked 0.3 rad
+    off its reference (0.1 rad allowed) aborts the loop, reported at its own step, within ERROR_CHECK_STEPS steps."""
+    d = _data_at(robot, robot.home_q)
+    a = robot.handles.arm_qpos[0]
+
+    def knock(data: mujoco.MjData) -> None:
+        if round(data.time / 1e-3) == 50:
+            data.qpos[a] += 0.3
+
+    with pytest.raises(ControlError, match=r"joint error 0\.3\d* rad exceeds 0\.1 rad at t = 0\.050 s") as info:
+        control.hold(robot, d, robot.home_q, 1.0, ControlConfig(), hook=knock)
+    rec = info.value.record
+    assert rec.steps == 50 and rec.q.shape == (51, 6)
+    assert rec.q[-1, 0] == pytest.approx(robot.home_q[0] + 0.3, abs=1e-3)
+    assert 50 < round(d.time / 1e-3) <= 50 + ERROR_CHECK_STEPS

@@ -1130,20 +1130,20 @@ def _run_joint(
         # controller sends each step's setpoint with the reference's feedforward
         setpoints = servo_setpoints(arm, q_ref[:n], qd_ref[:n], qdd_ref[:n], kp, kd, float(qpos[finger]))
 
-        def logged(rows: np.ndarray) -> np.ndarray:
-            """Log the ticks the tape covers and the state after them; return the torques applied."""
+        def logged(rows: np.ndarray, q_last: np.ndarray) -> np.ndarray:
+            """Log the ticks the tape covers and the state ``q_last`` after them; return the torques applied."""
             nonlocal j
             k = j = len(rows)
             q_log[:k] = rows[:, :N_ARM]
-            q_log[k] = qpos[h.arm_qpos]
+            q_log[k] = q_last
             k_log[: k + 1] = np.arange(k + 1)
             return rows[:, _TAU].copy()
 
-        def on_error(k: int, e: np.ndarray, rows: np.ndarray) -> None:
-            check(k, e, logged(rows))
+        def on_error(k: int, e: np.ndarray, rows: np.ndarray, q_k: np.ndarray) -> None:
+            check(k, e, logged(rows, q_k))
 
-        rows = loop.run_servo(robot, d, setpoints, kp, kd, q_ref, err_filter, on_error, hook)
-        tau = logged(rows)
+        rows = loop.run_servo(robot, d, setpoints, kp, kd, q_ref, max_err, on_error, hook)
+        tau = logged(rows, qpos[h.arm_qpos])
         saturated = int(np.count_nonzero((np.abs(tau) >= limits * (1.0 - 1e-12)).any(axis=1)))
         rec = record(j, len(rows), tau)
         log.debug("%s: %d steps on the joint servos, max error %.3g rad, rms %.3g rad, final %.3g rad, %d saturated "

@@ -293,13 +293,17 @@ class ControlLoop:
         kp: np.ndarray,
         kd: np.ndarray,
         q_ref: np.ndarray,
-        max_error_sq: float,
-        on_error: Callable[[int, np.ndarray, np.ndarray], None],
+        max_error: float,
+        on_error: Callable[[int, np.ndarray, np.ndarray, np.ndarray], None],
         hook: Hook | Measured | None,
     ) -> np.ndarray:
         """Run the arm's actuators as joint servos (:class:`ServoGains`) through ``len(setpoints)`` physics steps:
         MuJoCo applies ``kp (setpoint - q) - kd qd``, clamped to the torque limits, at every step, in C; Python
         only writes each step's setpoint, copies the arm's state block and calls the hook (ideal loop only).
+
+        The joint error is checked on the tape every :data:`ERROR_CHECK_STEPS` steps (and before the first step
+        and after the last), for every step: a state past the bound is reported with its own step, at most
+        ``ERROR_CHECK_STEPS`` ms of simulated time after it (the arm stays on the servos' torques meanwhile).
 
         Args:
             robot: The models.
@@ -307,9 +311,10 @@ class ControlLoop:
             setpoints: The controls of each step (n, 6) (rad): ``q_ref + (kd qd_ref + tau_ff) / kp``.
             kp, kd: Servo stiffness (6,) (N m/rad) and damping (6,) (N m s/rad).
             q_ref: Reference positions before each step and after the last (n + 1, 6) (rad).
-            max_error_sq: ``on_error`` is called when ``|q_ref - q|^2`` exceeds it (or is not finite).
-            on_error: ``on_error(k, e, tape)`` with the error (6,) before step ``k`` and the tape of the steps before
-                it (it may raise to abort).
+            max_error: ``on_error`` is called for the first state with a joint error ``|q_ref - q|`` beyond it (or not
+                finite) (rad).
+            on_error: ``on_error(k, e, tape, q)`` with the error (6,) and the positions (6,) of the state before step
+                ``k`` and the tape of the steps before it (it may raise to abort).
             hook: Called with ``d`` after every physics step; may raise to abort. A :class:`Measured` hook also
                 gets the tape.
 
@@ -333,26 +338,50 @@ class ControlLoop:
         q = d.qpos[arm_q]
         ctrl = d.ctrl
         step = mujoco.mj_step
-        taken = 0
+        every = ERROR_CHECK_STEPS
+        max_sq = max_error * max_error
+        taken = checked = 0  # steps taken; the states (rows) checked
+
+        def check(upto: int) -> None:
+            """Check the states of rows ``checked .. upto - 1``."""
+            nonlocal checked
+            e = q_ref[checked:upto] - rows[checked:upto, :N_ARM]
+            flat = e.reshape(-1)
+            if not flat.dot(flat) <= max_sq:  # below it every |e_i| is within the bound; a NaN is not
+                outside = ~(np.abs(e) <= max_error).all(axis=1)
+                if outside.any():
+                    k = checked + int(np.flatnonzero(outside)[0])
+                    on_error(k, e[k - checked], rows[:k], rows[k, :N_ARM])
+            checked = upto
+
         try:
             with ServoGains(m, h.arm_actuators, kp, kd):
+                e = q_ref[0] - q
+                if not (abs(e) <= max_error).all():
+                    on_error(0, e, rows[:0], q)
                 for k in range(n):
-                    e = q_ref[k] - q
-                    if not e.dot(e) <= max_error_sq:  # (ndarray.dot: a quarter of the cost of @ here)
-                        on_error(k, e, rows[:k])
                     ctrl[arm_u] = setpoints[k]
                     step(m, d)
                     rows[k] = block
                     taken = k + 1
                     if step_hook is not None:
                         step_hook(d)
+                    if taken - checked == every:
+                        check(taken)
+                if checked < n:
+                    check(n)
                 e = q_ref[n] - q
-                if not e.dot(e) <= max_error_sq:
-                    on_error(n, e, rows)
+                if not (abs(e) <= max_error).all():
+                    on_error(n, e, rows, q)
         finally:
             if sink is not None:
                 sink(rows[:taken], t0)
         return rows
+
+
+#: The joint servos' loop checks the joint error of the steps taken every this many physics steps (each step's own
+#: error; a state past the bound aborts the loop at most this many steps later).
+ERROR_CHECK_STEPS = 8
 
 
 #: Rows of the arm's state a loop whose length is not known ahead (:meth:`ControlLoop.run`) buffers before it hands
@@ -449,6 +478,7 @@ def _selector(idx: np.ndarray) -> slice | np.ndarray:
 IDEAL = ControlLoop()
 
 __all__ = [
+    "ERROR_CHECK_STEPS",
     "IDEAL",
     "UR5E_ENCODER_NOISE_STD_RAD",
     "UR5E_ENCODER_RESOLUTION_RAD",
