@@ -23,6 +23,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import functools
+import itertools
 import logging
 import threading
 from collections import OrderedDict
@@ -122,6 +123,7 @@ class CollisionChecker:
         self._m = family.model
         shared = self._shared = _shared_data(robot.world_scene, robot.scene.object, threading.get_ident())
         self._d = shared.d
+        self._token = next(_TOKENS)  # who this checker is to the shared data
         self._handles, self._held_body, self._arm = family.handles, family.held_body, family.arm
         self._contype, self._conaffinity = family.contype, family.conaffinity
         # This checker's state: the poses of what is not the arm, the fingers' opening (loaded into the shared data
@@ -162,7 +164,7 @@ class CollisionChecker:
         d.qpos[:] = self._qpos
         d.mocap_pos[:] = self._mocap_pos
         d.mocap_quat[:] = self._mocap_quat
-        self._shared.owner = self
+        self._shared.owner = self._token
 
     def set_held(self, T_tcp_object: pin.SE3, finger_m: float | None = None) -> None:
         """Carry the object at ``T_tcp_object`` from now on, the fingers at ``finger_m`` (m of travel) if given:
@@ -200,7 +202,7 @@ class CollisionChecker:
         family = self._family
         far = self._far
         if self._cull_far and family.cull_geoms.size:
-            if self._shared.owner is not self:
+            if self._shared.owner != self._token:
                 self._load()
             m, d = self._m, self._d
             mujoco.mj_kinematics(m, d)  # where everything that is not the arm is (the arm's pose does not matter)
@@ -216,7 +218,7 @@ class CollisionChecker:
     # ------------------------------------------------------------------ #
     # The loops below repeat _place inline: a check costs a few µs, so the Python around it matters.
     def _place(self, q: np.ndarray) -> None:
-        if self._shared.owner is not self:
+        if self._shared.owner != self._token:
             self._load()
         d = self._d
         d.qpos[self._arm] = q
@@ -233,7 +235,7 @@ class CollisionChecker:
         """Validity of a batch of configurations (N, 6) (rad) -> bool (N,)."""
         qs = np.atleast_2d(qs)
         out = np.empty(len(qs), dtype=bool)
-        if self._shared.owner is not self:
+        if self._shared.owner != self._token:
             self._load()
         m, d, arm, kinematics, collision = self._m, self._d, self._d.qpos[self._arm], mujoco.mj_kinematics, \
             mujoco.mj_collision
@@ -253,7 +255,7 @@ class CollisionChecker:
         """Index of the first invalid configuration of a batch (N, 6), in order, or -1 if all are valid; stops
         there."""
         qs = np.atleast_2d(qs)
-        if self._shared.owner is not self:
+        if self._shared.owner != self._token:
             self._load()
         m, d, arm, kinematics, collision = self._m, self._d, self._d.qpos[self._arm], mujoco.mj_kinematics, \
             mujoco.mj_collision
@@ -434,6 +436,9 @@ class _ModelFamily:
         return m
 
 
+_TOKENS = itertools.count()
+
+
 class _SharedData:
     """One ``MjData`` for all the checkers of one compiled checker model in one thread (making one costs about
     0.3 ms, more than the rest of a checker): a checker loads its own state into it (the poses of what is not the
@@ -445,7 +450,9 @@ class _SharedData:
         mujoco.mj_resetDataKeyframe(m, self.d, 0)
         self.qpos0, self.mocap_pos0, self.mocap_quat0 = (self.d.qpos.copy(), self.d.mocap_pos.copy(),
                                                          self.d.mocap_quat.copy())
-        self.owner: CollisionChecker | None = None  # whose state the data holds
+        # whose state the data holds: a checker's token, not the checker (a reference would make a cycle that keeps a
+        # scene's checkers, models and data alive until the cyclic garbage collector runs, long after the episode)
+        self.owner: int | None = None
 
 
 @functools.lru_cache(maxsize=16)
