@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from pickplace.grasping.hold import HoldResult, hold_test
@@ -151,3 +152,54 @@ def test_hold_fails_when_it_should() -> None:
     _print("control: mu 0.05, 1.5 kg", r)
     assert not r.held
     assert r.slip_m > SLIP_M
+
+
+def test_the_drive_slows_onto_the_object_squeezes_up_and_eases_off(robot: model.Robot) -> None:
+    """Closing on the default cube with the arm held still: the fingers close fast, slow down a millimetre before
+    the pads are expected to meet it, so that both meet it slowly (and within a step of each other), then the
+    squeeze rises to the servo's 20 N per pad; opening, the squeeze falls over ``SQUEEZE_RAMP_S`` before the pads
+    leave it. The held arm is never jolted past a joint's acceleration limit."""
+    from pickplace.motion import control
+    from pickplace.robot.gripper import SLOW_SPEED_M_S, SQUEEZE_RAMP_S, GripDrive, pad_forces
+    from pickplace.robot.ik import solve_ik
+
+    m, h = robot.mj, robot.handles
+    size = robot.scene.object.size_m[0]
+    down_x = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])  # pads closing along the world's x
+    centre = np.array([*robot.scene.start_xy_m, robot.scene.table_height_m + size / 2])
+    q = solve_ik(robot, pin.SE3(down_x, centre), robot.home_q).q
+    d = robot.make_data()
+    d.qpos[h.arm_qpos] = q
+    mujoco.mj_forward(m, d)
+    alim = np.array([8.0, 8.0, 8.0, 16.0, 16.0, 16.0])
+    log: list[tuple[np.ndarray, np.ndarray, float]] = []  # pad forces, arm velocities, finger speed
+
+    def run(drive: GripDrive, seconds: float) -> None:
+        def hook(d: mujoco.MjData) -> None:
+            drive(d)
+            log.append((pad_forces(robot, d), d.qvel[h.arm_dof].copy(), float(np.mean(d.qvel[h.finger_dof]))))
+        control.hold(robot, d, q, seconds, control.ControlConfig(), hook=hook)
+
+    closing = GripDrive(robot, d, True, size)
+    run(closing, 0.15)
+    forces = np.array([f for f, _, _ in log])
+    first = [int(np.argmax(forces[:, side] > 0.0)) for side in (0, 1)]
+    speed_at_touch = log[min(first) - 1][2]
+    print(f"\npads meet the cube at steps {first}, the fingers at {speed_at_touch * 1e3:.0f} mm/s; squeeze "
+          f"{forces[-1].round(2)} N")
+    assert closing.done
+    assert abs(first[0] - first[1]) <= 1
+    assert 0.0 < speed_at_touch <= 1.25 * SLOW_SPEED_M_S
+    np.testing.assert_allclose(forces[-1], 20.0, atol=0.5)
+
+    n_closed = len(log)
+    opening = GripDrive(robot, d, False)
+    run(opening, 0.05)
+    after = np.array([f for f, _, _ in log[n_closed:]])
+    gone = int(np.argmax(after.max(axis=1) <= 0.0))
+    print(f"opening: the pads leave the cube {gone} ms after the command, the squeeze falling by "
+          f"{np.max(-np.diff(after, axis=0)):.2f} N per ms at most")
+    assert opening.done and gone * float(m.opt.timestep) >= SQUEEZE_RAMP_S - 1e-9
+    assert np.max(-np.diff(after[:gone], axis=0)) <= 20.0 * float(m.opt.timestep) / SQUEEZE_RAMP_S * 1.5
+    accel = np.abs(np.diff(np.array([v for _, v, _ in log]), axis=0)) / float(m.opt.timestep)
+    assert np.all(accel <= alim), f"held arm at {np.max(accel / alim):.2f} of a limit"

@@ -252,6 +252,99 @@ def command(robot: Robot, d: mujoco.MjData, closed: bool) -> None:
     d.ctrl[robot.handles.gripper_actuator] = hi if closed else lo
 
 
+#: A closing gripper slows down this far (m of finger travel) before its pads are expected to meet the object ...
+SLOW_GAP_M = 0.001
+#: ... to this speed (m/s), so that a pad that meets it first pushes it with only the force that drives the fingers
+#: at that speed (about 5 N per pad as built), not the servo's full squeeze.
+SLOW_SPEED_M_S = 0.08
+#: Once both pads press on the object (the fingers stop), the squeeze is brought up to the servo's force limit over
+#: this time (s), and before the pads open it is brought down to nothing over the same time: the arm, holding still,
+#: takes a change of the pads' forces over 10 ms as a push, not a jolt.
+SQUEEZE_RAMP_S = 0.01
+
+
+class GripDrive:
+    """The gripper's command step by step (call it after every physics step): a close onto an object whose width is
+    known, or an open.
+
+    Closing: the fingers close at the drive's full speed until the pads are :data:`SLOW_GAP_M` from the object, then
+    at :data:`SLOW_SPEED_M_S` until they stop on it, then the squeeze rises to the servo's force limit over
+    :data:`SQUEEZE_RAMP_S`; then the command is the fully closed stroke (as :func:`command`). Opening: the squeeze
+    falls to nothing over :data:`SQUEEZE_RAMP_S`, then the command is fully open. The position servo is driven as a
+    force source: its target is set, every step, so far ahead of the fingers' mean travel that the servo pushes with
+    the force wanted (``F = kp (target - travel) - kv travel'``; the fingers' damping sets their speed,
+    ``v = F / (sum of the fingers' damping)``, within a millisecond).
+
+    Args:
+        robot: The models (the gripper's servo, the fingers' damping).
+        d: The simulation state (read, and its gripper control written).
+        closed: Close (True) or open.
+        width_m: The object's width between the pads (m), for a close; None closes at full speed throughout.
+        early_m: How far before the width a pad may meet the object (m): the surface standing proud of the planned
+            contacts (``GraspCandidate.touch_m``); the fingers slow down that much earlier.
+
+    Attributes:
+        done: The command has reached its end (fully closed or fully open).
+    """
+
+    def __init__(self, robot: Robot, d: mujoco.MjData, closed: bool, width_m: float | None = None,
+                 early_m: float = 0.0) -> None:
+        m, h = robot.mj, robot.handles
+        self._a = a = h.gripper_actuator
+        self._q, self._v = h.finger_qpos, h.finger_dof
+        self._lo, self._hi = (float(x) for x in m.actuator_ctrlrange[a])
+        self._kp = float(m.actuator_gainprm[a, 0])
+        self._kv = float(-m.actuator_biasprm[a, 2])
+        self._fmax = float(m.actuator_forcerange[a, 1]) if m.actuator_forcelimited[a] else math.inf
+        self._damping = float(m.dof_damping[h.finger_dof].sum())
+        self._dt = float(m.opt.timestep)
+        self._closed = closed
+        self._t = 0.0
+        if closed:
+            self._slow_from = -math.inf if width_m is None else \
+                GripperGeometry.measure(robot).contact_travel_m(width_m) - max(0.0, early_m) - SLOW_GAP_M
+            self._stage = "fast" if width_m is not None else "closed"
+            self._f0 = 0.0
+        else:
+            self._stage = "release"
+            self._f0 = max(0.0, min(self._fmax, float(d.actuator_force[a])))
+        self.done = self._stage == "closed"
+        self(d, advance=False)
+
+    def _travel(self, d: mujoco.MjData) -> tuple[float, float]:
+        """The fingers' mean travel (m) and its rate (m/s)."""
+        return float(d.qpos[self._q].mean()), float(d.qvel[self._v].mean())
+
+    def _pushing(self, d: mujoco.MjData, force_n: float, travel: float, rate: float) -> None:
+        """Set the servo's target so that it pushes the fingers closed with ``force_n`` (N) now."""
+        d.ctrl[self._a] = min(self._hi, max(self._lo, travel + (force_n + self._kv * rate) / self._kp))
+
+    def __call__(self, d: mujoco.MjData, advance: bool = True) -> None:
+        """Update the command after a physics step (``advance`` False: only set it, at the start)."""
+        if advance:
+            self._t += self._dt
+        travel, rate = self._travel(d)
+        if self._stage == "fast" and travel >= self._slow_from:
+            self._stage = "slow"
+        elif self._stage == "fast" and advance and self._t > SQUEEZE_RAMP_S and rate < 0.25 * SLOW_SPEED_M_S:
+            self._stage = "closed"  # met the object before it was expected: squeezing at full force already
+        slow_force = self._damping * SLOW_SPEED_M_S
+        if self._stage == "slow" and advance and rate < 0.25 * SLOW_SPEED_M_S:  # the pads stopped on the object
+            self._stage, self._t, self._f0 = "squeeze", 0.0, slow_force
+        if self._stage in ("squeeze", "release"):
+            ramp = min(1.0, self._t / SQUEEZE_RAMP_S)
+            force = self._f0 + (self._fmax - self._f0) * ramp if self._closed else self._f0 * (1.0 - ramp)
+            if ramp >= 1.0:
+                self._stage = "closed" if self._closed else "open"
+        if self._stage == "slow":
+            self._pushing(d, slow_force, travel, rate)
+        elif self._stage in ("squeeze", "release"):
+            self._pushing(d, force, travel, 0.0)
+        else:
+            d.ctrl[self._a] = self._hi if self._stage in ("fast", "closed") else self._lo
+        self.done = self._stage in ("closed", "open")
+
+
 def finger_travel(robot: Robot, d: mujoco.MjData) -> float:
     """Current finger travel (m), 0 = open."""
     return float(d.qpos[robot.handles.finger_qpos[0]])

@@ -268,27 +268,37 @@ class Arm:
         self._tallies.setdefault(self.monitor.phase, control.TrackingTally()).add(rec)
         self._tally_total.add(rec)
 
-    def hold(self, q: np.ndarray, duration_s: float, comply_along: np.ndarray | None = None) -> control.TrackingRecord:
+    def hold(self, q: np.ndarray, duration_s: float, comply_along: np.ndarray | None = None,
+             hook: control.Hook | None = None) -> control.TrackingRecord:
+        """Hold ``q`` (6,) (rad) for ``duration_s`` (s); ``hook`` replaces the monitor (and must call it)."""
         rec = control.hold(self.robot, self.d, q, duration_s, self.ctrl, payload=self.payload,
-                           hook=self.step_hook(self.monitor, moving=False), noise=self.noise, loop=self.loop,
+                           hook=self.step_hook(hook or self.monitor, moving=False), noise=self.noise, loop=self.loop,
                            comply_along=comply_along)
         self.count(rec)
         return rec
 
-    def stop(self) -> None:
-        """Bring the arm to rest at the trajectories' deceleration limits, then hold it for 0.15 s."""
-        rec = control.stop(self.robot, self.d, self.line_limits[1], self.ctrl, payload=self.payload,
-                           hook=self.step_hook(self.monitor), noise=self.noise, loop=self.loop, settle_s=0.15)
+    def stop(self, settle_s: float = 0.15, share: float = 1.0) -> None:
+        """Bring the arm to rest at ``share`` (0..1] of the trajectories' deceleration limits, then hold it for
+        ``settle_s`` (s)."""
+        rec = control.stop(self.robot, self.d, share * self.line_limits[1], self.ctrl, payload=self.payload,
+                           hook=self.step_hook(self.monitor), noise=self.noise, loop=self.loop, settle_s=settle_s)
         self.count(rec)
         self.trajectory = None
 
+    @property
+    def moving(self) -> bool:
+        """Whether any joint turns faster than 1 mrad/s."""
+        return bool(np.max(np.abs(self.d.qvel[self.robot.handles.arm_dof])) > 1e-3)
+
     def hold_until(self, q: np.ndarray | None, done: Callable[[], bool], timeout_s: float,
-                    min_s: float = 0.0, comply_along: np.ndarray | None = None) -> bool:
+                    min_s: float = 0.0, comply_along: np.ndarray | None = None,
+                    hook: control.Hook | None = None) -> bool:
         """Hold ``q`` in steps of ``poll_s`` until ``done()`` (checked from ``min_s`` on) or ``timeout_s`` (s).
 
         ``q`` None holds the arm where it is at each step (it is not driven anywhere). ``comply_along`` (3,)
         (a world direction): the arm yields along it, stiff in every other direction (:func:`control.hold`);
-        each step holds the reference where the last one left it.
+        each step holds the reference where the last one left it. ``hook`` replaces the monitor (and must call it),
+        e.g. to drive the gripper step by step.
 
         Returns:
             Whether ``done()`` became true in time.
@@ -299,7 +309,7 @@ class Arm:
                 return True
             if waited >= timeout_s:
                 return False
-            rec = self.hold(self.q if q is None else q, self.cfg.poll_s, comply_along)
+            rec = self.hold(self.q if q is None else q, self.cfg.poll_s, comply_along, hook)
             if comply_along is not None:
                 q = rec.q_ref[-1].copy()
             waited += self.cfg.poll_s

@@ -34,7 +34,6 @@ for the scene's object. What the skill measures goes into the arm's
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import logging
 import math
@@ -103,6 +102,13 @@ RE_AIM_RESERVE = 0.05
 #: top aside, which it rises from), or it backs off by a Cartesian move on the line itself first. A cube let go
 #: between the wall of a bin and another object leaves a finger a fraction of a millimetre from the wall.
 RETRACT_CUSHION_M = 2e-3
+
+
+#: A set-down that the surface ends before its trajectory does (the object sits lower in the hand than when it was
+#: aimed) brings the still moving arm to rest at this share of the trajectories' deceleration limits, not at once by
+#: the hold that follows: holding the position it had reached jolted the arm to 3.6 times wrist 1's acceleration
+#: limit, and decelerating at the limits took the elbow 14 % past its own (the surface pushing back on the object).
+SET_DOWN_STOP_SHARE = 0.5
 
 
 class _SetDown(Exception):
@@ -298,16 +304,24 @@ class PickPlaceSkill:
         self.monitor.watching = False  # the pads move it now
         self.monitor.allow_hand_object = True
         self.observer.closing()
-        gripper.command(robot, d, True)
+        assert self.configs is not None
+        # fast, then slowly onto the object, then the full squeeze, step by step
+        drive = gripper.GripDrive(robot, d, True, self.configs.targets.width_m, max(self.configs.chosen.touch_m))
+        monitor = self.monitor
+
+        def hook(d: mujoco.MjData) -> None:
+            drive(d)
+            monitor(d)
 
         def gripping() -> bool:
-            return (gripper.is_settled(robot, d, cfg.finger_settle_speed_m_s)
+            return (drive.done and gripper.is_settled(robot, d, cfg.finger_settle_speed_m_s)
                     and bool(np.all(self.observer.pad_forces() >= cfg.min_pad_force_n)))
 
         comply = self.arm.tcp_pose().rotation[:, 1] if self.arm.ctrl.comply_while_closing else None  # pads' axis
         settled = self.arm.hold_until(self.arm.q, gripping, cfg.close_timeout_s, min_s=5 * cfg.poll_s,
-                                      comply_along=comply)
+                                      comply_along=comply, hook=hook)
         forces = self.observer.pad_forces()
+        gripper.command(robot, d, True)  # (the drive's end: fully closed)
         if not settled:
             travel = gripper.finger_travel(robot, d)
             raise GraspFailed(f"the pads did not settle on the {robot.scene.object.name} within "
@@ -650,6 +664,8 @@ class PickPlaceSkill:
             except _SetDown:
                 log.debug("set down at t = %.3f s, the tcp %.2f mm above its target", self.monitor.t,
                           (float(self.arm.tcp_pose().translation[2]) - float(end[2])) * 1e3)
+                if self.arm.moving:  # down early (the object sits lower in the hand): brought to rest gently (the
+                    self.arm.stop(settle_s=0.0, share=SET_DOWN_STOP_SHARE)  # surface pushes back), not by the hold
         self.out.place_line_deviation_max_m = float(np.fmax(self.out.place_line_deviation_max_m, line.max_m))
         return Phase.RELEASE
 
@@ -659,13 +675,19 @@ class PickPlaceSkill:
         robot, d, cfg, observer = self.robot, self.d, self.cfg, self.observer
         self.monitor.holding = False
         self.monitor.allow_object_table = True
-        self.arm.payload = None
         observer.expect_load(None)
-        gripper.command(robot, d, False)
+        # the squeeze eased off, then open; the payload compensation held until the pads let go (the object's weight
+        # goes over to the table as the squeeze eases)
+        drive = gripper.GripDrive(robot, d, False)
         observer.released()
         self._release_t = self.monitor.t
         geom = gripper.GripperGeometry.measure(robot)
         clear_travel = geom.contact_travel_m(self.configs.targets.width_m) - cfg.release_clearance_m
+        monitor = self.monitor
+
+        def hook(d: mujoco.MjData) -> None:
+            drive(d)
+            monitor(d)
 
         def speed() -> float:
             return float(np.linalg.norm(observer.object_velocity()[:3]))
@@ -674,9 +696,13 @@ class PickPlaceSkill:
             return gripper.finger_travel(robot, d) <= clear_travel and not np.any(observer.pad_forces() > 0.0)
 
         def released() -> bool:
+            if drive.done:
+                self.arm.payload = None
             return cleared() and speed() < cfg.object_rest_speed_m_s
 
-        rested = self.arm.hold_until(self.arm.q, released, cfg.release_timeout_s, min_s=cfg.poll_s)
+        rested = self.arm.hold_until(self.arm.q, released, cfg.release_timeout_s, min_s=cfg.poll_s, hook=hook)
+        self.arm.payload = None
+        gripper.command(robot, d, False)  # (the drive's end: fully open)
         if not rested and cleared() and not math.isfinite(speed()):  # the open pads hide it from the camera
             self._back_off_to_look(f"the camera does not see the {robot.scene.object.name} next to the open pads")
             rested = self.arm.hold_until(self.arm.q, released, cfg.release_timeout_s, min_s=cfg.poll_s)
@@ -906,9 +932,12 @@ class PickPlaceSkill:
                 raise _SetDown
 
         log.info("recovery: setting the %s back down where it was picked", robot.scene.object.name)
-        with contextlib.suppress(_SetDown):  # the table carries it: no need to go further
+        try:
             self.arm.vertical(Phase.PLAN_TRANSPORT, z_grasp + PLACE_DROP_M, hook, self.arm.carrying(0.0, True),
                               self.arm.support_reserve(), self.ik)
+        except _SetDown:  # the table carries it: no need to go further
+            if self.arm.moving:
+                self.arm.stop(settle_s=0.0, share=SET_DOWN_STOP_SHARE)
         monitor.holding = False
         monitor.allow_object_table = True
         self.arm.payload = None
