@@ -1041,7 +1041,7 @@ class PickPlaceSkill:
         remaining = self._release_t + self.cfg.stable_after_release_s - self.monitor.t
         self.monitor.phase = Phase.DONE.value
         try:
-            if remaining > 0:
+            if remaining > 0.5 * float(self.robot.mj.opt.timestep):  # (less is no step at all)
                 self.arm.hold(self.robot.home_q, remaining)
         except PickPlaceError as exc:
             self._fail(Phase.DONE, exc)
