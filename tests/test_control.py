@@ -529,3 +529,12 @@ def test_the_servos_joint_error_check_names_the_first_state_past_the_bound(robot
     assert rec.steps == 50 and rec.q.shape == (51, 6)
     assert rec.q[-1, 0] == pytest.approx(robot.home_q[0] + 0.3, abs=1e-3)
     assert 50 < round(d.time / 1e-3) <= 50 + ERROR_CHECK_STEPS
+
+
+def test_a_hold_of_no_step_takes_none(robot: Robot) -> None:
+    d = _data_at(robot, robot.home_q)
+    rec = control.hold(robot, d, robot.home_q, 0.0, ControlConfig())
+    assert rec.steps == 0 and d.time == 0.0 and rec.q.shape == (1, 6) and rec.tau.shape == (0, 6)
+    arm = control.arm_model(robot)
+    assert control.servo_setpoints(arm, np.empty((0, 6)), np.empty((0, 6)), np.empty((0, 6)), np.ones(6),
+                                   np.ones(6)).shape == (0, 6)

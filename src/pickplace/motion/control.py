@@ -1040,6 +1040,8 @@ def servo_setpoints(arm: ArmModel, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_re
     """
     model, data = arm.model, arm.data
     n = len(q_ref)
+    if n == 0:
+        return np.empty((0, N_ARM))
     vel = np.zeros((n, model.nv))
     vel[:, :N_ARM] = qd_ref
     acc = np.zeros((n, model.nv))
