@@ -287,8 +287,12 @@ class Arm:
 
     @property
     def moving(self) -> bool:
-        """Whether any joint turns faster than 1 mrad/s."""
-        return bool(np.max(np.abs(self.d.qvel[self.robot.handles.arm_dof])) > 1e-3)
+        """Whether the arm is told to move now: the running trajectory's reference turns a joint faster than 1 mrad/s
+        where the clock has got to along it (a motion that a hook ended before its end)."""
+        traj = self._trajectory
+        if traj is None:
+            return False
+        return bool(np.max(np.abs(traj.sample(self.monitor.t - self._traj_t0)[1])) > 1e-3)
 
     def hold_until(self, q: np.ndarray | None, done: Callable[[], bool], timeout_s: float,
                     min_s: float = 0.0, comply_along: np.ndarray | None = None,
