@@ -17,6 +17,7 @@ import pytest
 from pickplace.robot import model
 from pickplace.robot.kinematics import frame_jacobian
 from pickplace.world.config import SceneConfig
+from pickplace.world.objects import library_object
 
 # --------------------------------------------------------------------------- #
 # UR5e published data (UR5E.md), typed in independently of the MJCF
@@ -554,3 +555,19 @@ def test_a_lying_can_at_rest_stays_at_rest(xy: tuple[float, float], yaw: float) 
         d.qpos[h.arm_qpos], d.qvel[h.arm_dof] = q0, 0.0
     assert np.linalg.norm(d.xpos[h.object_body] - p0) < 5e-5
     assert np.linalg.norm(d.qvel[h.object_dof:h.object_dof + 3]) < 1e-5
+
+
+@pytest.mark.parametrize("name", ["mug", "l_bracket"])
+def test_the_object_sensors_read_its_origin_not_its_centre_of_mass(name: str) -> None:
+    """Objects whose centre of mass is off their origin: the sensors read the body's frame, as the checks expect."""
+    robot = model.build(SceneConfig(object=library_object(name)))
+    m, h = robot.mj, robot.handles
+    d = robot.make_data()
+    d.qpos[h.arm_qpos] += 0.1
+    mujoco.mj_forward(m, d)
+    assert np.linalg.norm(d.xipos[h.object_body] - d.xpos[h.object_body]) > 5e-3  # the case that matters
+    a, b = h.object_position_sensor, h.object_in_tcp_sensor
+    np.testing.assert_allclose(d.sensordata[a : a + 3], d.xpos[h.object_body], rtol=0, atol=1e-12)
+    R = d.site_xmat[h.tcp_site].reshape(3, 3)
+    expected = R.T @ (d.xpos[h.object_body] - d.site_xpos[h.tcp_site])
+    np.testing.assert_allclose(d.sensordata[b : b + 3], expected, rtol=0, atol=1e-12)

@@ -224,11 +224,12 @@ def _add_object_sensors(spec: mujoco.MjSpec, body: str) -> None:
         s.objtype, s.objname = mujoco.mjtObj.mjOBJ_GEOM, pad
         s.reftype, s.refname = mujoco.mjtObj.mjOBJ_BODY, body
         s.intprm[:3] = [_CONTACT_FOUND_FORCE, _REDUCE_NETFORCE, 1]
+    # the body's own frame (mjOBJ_XBODY: its origin); a frame sensor of an mjOBJ_BODY reads its centre of mass
     s = spec.add_sensor(name=f"{body}_in_tcp", type=mujoco.mjtSensor.mjSENS_FRAMEPOS)
-    s.objtype, s.objname = mujoco.mjtObj.mjOBJ_BODY, body
+    s.objtype, s.objname = mujoco.mjtObj.mjOBJ_XBODY, body
     s.reftype, s.refname = mujoco.mjtObj.mjOBJ_SITE, "tcp"
     s = spec.add_sensor(name=f"{body}_position", type=mujoco.mjtSensor.mjSENS_FRAMEPOS)
-    s.objtype, s.objname = mujoco.mjtObj.mjOBJ_BODY, body
+    s.objtype, s.objname = mujoco.mjtObj.mjOBJ_XBODY, body
     _add_contact_count(spec, f"{body}_contacts", (mujoco.mjtObj.mjOBJ_BODY, body))
     _add_contact_count(spec, f"{body}_hand_contacts", (mujoco.mjtObj.mjOBJ_XBODY, "gripper_base"),
                        (mujoco.mjtObj.mjOBJ_BODY, body))
