@@ -454,9 +454,10 @@ def test_comply_along_must_be_a_direction(robot: Robot) -> None:
 
 
 def test_joint_servos_apply_joint_impedance_with_the_references_feedforward(robot: Robot) -> None:
-    """With the servos' gains set and each step's setpoint from ``servo_setpoints``, MuJoCo's actuators apply
-    ``kp (q_ref - q) + kd (qd_ref - qd) + tau_ff(q_ref, qd_ref, qdd_ref)``, computed here independently with
-    Pinocchio's RNEA on the controller's model, clipped to the torque limits."""
+    """With the servos' gain set and each step's control the setpoint from ``servo_setpoints`` less ``kd / kp`` times
+    the velocities (what the loop sends), MuJoCo's actuators apply ``kp (q_ref - q) + kd (qd_ref - qd) +
+    tau_ff(q_ref, qd_ref, qdd_ref)``, computed here independently with Pinocchio's RNEA on the controller's model,
+    clipped to the torque limits."""
     rng = np.random.default_rng(7)
     h = robot.handles
     config = ControlConfig()
@@ -471,13 +472,12 @@ def test_joint_servos_apply_joint_impedance_with_the_references_feedforward(robo
         u = control.servo_setpoints(arm, q_ref[None], qd_ref[None], qdd_ref[None], kp, kd)[0]
         d = _data_at(robot, q)
         d.qvel[h.arm_dof] = qd
-        with ServoGains(robot.mj, h.arm_actuators, kp, kd):
-            d.ctrl[h.arm_actuators] = u
+        with ServoGains(robot.mj, h.arm_actuators, kp):
+            d.ctrl[h.arm_actuators] = u - kd / kp * qd
             mujoco.mj_forward(robot.mj, d)
         v, a = np.zeros(8), np.zeros(8)
         v[:6], a[:6] = qd_ref, qdd_ref
-        ff = pin.rnea(arm.model, arm.model.createData(), robot.pin_q(q_ref), v, a)[:6]
-        ff += arm.damping * qd_ref + arm.timestep_s * kd * qdd_ref  # the joints' and the servo's implicit damping
+        ff = pin.rnea(arm.model, arm.model.createData(), robot.pin_q(q_ref), v, a)[:6] + arm.damping * qd_ref
         expected = np.clip(kp * (q_ref - q) + kd * (qd_ref - qd) + ff, -limits, limits)
         np.testing.assert_allclose(d.actuator_force[h.arm_actuators], expected, rtol=1e-9, atol=1e-9)
     # out of the block, they are torque motors again
@@ -487,8 +487,7 @@ def test_joint_servos_apply_joint_impedance_with_the_references_feedforward(robo
 
 def test_an_arm_on_its_reference_stays_on_it(robot: Robot, configs: GraspConfigurations) -> None:
     """The feedforward makes the servos exact: an arm that starts on a TOPP-RA trajectory at the UR5e's limits stays
-    within a micro-radian of it (its model is the plant's; the feedforward taken on the reference and the integrator's
-    implicit treatment of the servo's damping included)."""
+    within a micro-radian of it (its model is the plant's, the feedforward taken on the reference)."""
     traj = retime(np.array([robot.home_q, configs.pregrasp.q]), TimingConfig.ur5e())
     rec = control.track(robot, _data_at(robot, robot.home_q), traj, ControlConfig())
     print(f"\njoint servos home->pregrasp: max {rec.max_error_rad:.2e} rad, rms {rec.rms_error_rad:.2e} rad")

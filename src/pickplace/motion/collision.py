@@ -151,6 +151,11 @@ class CollisionChecker:
         self._copy_world(d)
         self._update_model()
 
+    def world_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The world this checker answers for (:meth:`set_world`): ``qpos`` (the arm's entries mean nothing, the
+        fingers' are the policy's opening), ``mocap_pos`` and ``mocap_quat``; copies."""
+        return self._qpos.copy(), self._mocap_pos.copy(), self._mocap_quat.copy()
+
     def _copy_world(self, d: mujoco.MjData) -> None:
         self._qpos[:] = d.qpos  # (the arm's part is set by each check)
         self._qpos[self._handles.finger_qpos] = self._finger_m

@@ -30,18 +30,18 @@ exact state and applies the torque every physics step (``mujoco.mj_step``, the m
 one (:meth:`~pickplace.motion.loop.LoopConfig.realistic`) reads encoders at 500 Hz and applies each torque one
 period later, held.
 
-In the ideal loop, joint impedance with feedforward (the default gains) runs on *joint servos*: the arm's
-actuators take ``kp`` and ``kd`` for the loop (:class:`~pickplace.motion.loop.ServoGains`) and MuJoCo applies
-``kp (u - q) - kd qd`` at every physics step, in C, as a robot's joint drives do; the controller sends one
-setpoint per step, ``u = q_ref + (kd qd_ref + tau_ff) / kp`` (:func:`servo_setpoints`), with the feedforward
-evaluated on the reference, ``tau_ff = M(q_ref) qdd_ref + C(q_ref, qd_ref) qd_ref + g(q_ref) + D qd_ref +
-h kd qdd_ref``. It differs from :func:`joint_impedance` only in where the feedforward's model terms are evaluated
-(the reference instead of the measured state: ``dg/dq e``, the tracking error times gravity's gradient, a few
-micro-newton-metres at the micro-radian errors the arm tracks with) and in the servo's damping being integrated
-implicitly (``h kd qdd_ref`` compensates it exactly on the reference). The Python around the physics is then a
-setpoint write, the error check and the monitor (``pickplace bench loop``). Loops whose law reads the state in
-Python run it there: Cartesian impedance, computed-torque or integral gains, holds that comply along an axis, a
-sensor fault's noise, and every realistic loop (500 Hz, latency, encoders).
+In the ideal loop, joint impedance with feedforward (the default gains) runs on *position servos*: the arm's
+actuators take ``kp`` for the loop (:class:`~pickplace.motion.loop.ServoGains`) and MuJoCo applies ``kp (u - q)``
+at every physics step; the control sent each step is ``u = u_ref - (kd / kp) qd``, the velocities read at the
+step, with the setpoint ``u_ref = q_ref + (kd qd_ref + tau_ff) / kp`` computed for the whole reference ahead
+(:func:`servo_setpoints`) and the feedforward evaluated on the reference, ``tau_ff = M(q_ref) qdd_ref + C(q_ref,
+qd_ref) qd_ref + g(q_ref) + D qd_ref``. It differs from :func:`joint_impedance` only in where the feedforward's
+model terms are evaluated (the reference instead of the measured state: ``dg/dq e``, the tracking error times
+gravity's gradient, micro-newton-metres at the micro-radian errors the arm tracks with). The damping stays
+explicit (:meth:`~pickplace.motion.loop.ControlLoop.run_servo` says why). The Python around the physics is then
+two numpy calls for the control, the error check and the monitor (``pickplace bench loop``). Loops whose law needs
+the state in Python run it there: Cartesian impedance, computed-torque or integral gains, holds that comply along
+an axis, a sensor fault's noise, and every realistic loop (500 Hz, latency, encoders).
 
 The loops write the six arm actuators' controls only (never the gripper's), keep the torques within
 ``robot.torque_limits_nm`` (clipped by the law, or by the actuators' force range) and count the clipped ticks, call
@@ -1019,24 +1019,24 @@ class _Integral:
 
 def servo_setpoints(arm: ArmModel, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_ref: np.ndarray, kp: np.ndarray,
                     kd: np.ndarray, finger_m: float = 0.0) -> np.ndarray:
-    """The controls (n, 6) that make joint servos (:class:`~pickplace.motion.loop.ServoGains`: MuJoCo applies
-    ``kp (u - q) - kd qd`` at every step) apply joint impedance with the reference's inverse dynamics.
+    """The setpoints (n, 6) that make position servos (:class:`~pickplace.motion.loop.ServoGains`: MuJoCo applies
+    ``kp (u - q)``) apply joint impedance with the reference's inverse dynamics, the control of each step being the
+    setpoint less ``kd / kp`` times the velocities then (:meth:`~pickplace.motion.loop.ControlLoop.run_servo`).
 
-    ``u = q_ref + (kd qd_ref + tau_ff) / kp``, so that the servo's torque is
+    ``u_ref = q_ref + (kd qd_ref + tau_ff) / kp``, so that the torque applied is
     ``kp (q_ref - q) + kd (qd_ref - qd) + tau_ff`` with ``tau_ff = M(q_ref) qdd_ref + C(q_ref, qd_ref) qd_ref +
-    g(q_ref) + D qd_ref + h kd qdd_ref``: :func:`joint_impedance`'s feedforward evaluated on the reference instead of
-    the measured state (they differ by ``dg/dq e``, the tracking error times gravity's gradient), plus
-    ``h kd qdd_ref``: the integrator treats the servo's damping implicitly, ``(M + h (D + kd)) dv = h f``, as it does
-    the joints' own damping (:func:`arm_model`), so a state on the reference stays on it.
+    g(q_ref) + D qd_ref``: :func:`joint_impedance`'s feedforward evaluated on the reference instead of the measured
+    state (they differ by ``dg/dq e``, the tracking error times gravity's gradient). A row equal to the one before
+    it (a hold, the settling at a trajectory's end) reuses its feedforward.
 
     Args:
         arm: The controller's model.
         q_ref, qd_ref, qdd_ref: Reference positions (rad), velocities (rad/s), accelerations (rad/s^2) (n, 6).
-        kp, kd: Servo stiffness (6,) (N m/rad) and damping (6,) (N m s/rad), kp > 0.
+        kp, kd: Stiffness (6,) (N m/rad), > 0, and damping (6,) (N m s/rad).
         finger_m: Finger slide travel (m).
 
     Returns:
-        The controls (n, 6) (rad).
+        The setpoints (n, 6) (rad).
     """
     model, data = arm.model, arm.data
     n = len(q_ref)
@@ -1058,7 +1058,6 @@ def servo_setpoints(arm: ArmModel, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_re
     if len(rows) < n:
         ff = ff[np.cumsum(new) - 1]
     ff += arm.damping * qd_ref
-    ff += (arm.timestep_s * kd) * qdd_ref
     ff += kd * qd_ref
     return q_ref + ff / kp
 
@@ -1128,8 +1127,8 @@ def _run_joint(
                                record(j, k, tau))
 
     if fast and noise is None and yielding is None and loop.ideal:
-        # joint servos (see the module's docstring): MuJoCo's actuators run the feedback at every physics step; the
-        # controller sends each step's setpoint with the reference's feedforward
+        # position servos (see the module's docstring): MuJoCo's actuators apply the position feedback at every physics
+        # step; the controller sends each step's setpoint, with the reference's feedforward, less the damping's share
         setpoints = servo_setpoints(arm, q_ref[:n], qd_ref[:n], qdd_ref[:n], kp, kd, float(qpos[finger]))
 
         def logged(rows: np.ndarray, q_last: np.ndarray) -> np.ndarray:

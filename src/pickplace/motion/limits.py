@@ -11,10 +11,11 @@ controller asked more than, clipped: it counts as a violation.
 
 Steps are counted apart by what the arm was told to do: move (a trajectory, a straight move, a stop) or stand
 still (a hold: while the gripper closes or opens, while waiting). Standing still, the arm moves only as
-something pushes it: the first pad that meets the object as the gripper closes jolts the wrist (3-4 ms at up
-to twice the wrists' acceleration limit in the ideal profile, whose mirrored finger lags 1 mm behind the driven
-one through its soft coupling). The limits bound the motions the robot makes; what the world does to an arm
-holding still is reported, not hidden, but apart.
+something pushes it: the pads meeting the object as the gripper closes, or letting it go (the gripper's drive
+closes both fingers together and slows before contact, :class:`~pickplace.robot.gripper.GripDrive`, so that the
+held wrist stays within its limits; a pad that met the object alone used to jolt it to twice its acceleration
+limit). The limits bound the motions the robot makes; what the world does to an arm holding still is reported, not
+hidden, but apart.
 
 :class:`LineMeter` measures how far the tcp strays from a straight line (the final approach to a grasp, the
 set-down).
@@ -112,23 +113,23 @@ class LimitMeter:
         if n == 0:
             return
         v = rows[:, _QD]
-        ratios = np.empty((3, n, v.shape[1]))
-        np.multiply(np.abs(v), self._inv[0], out=ratios[0])
         dv = np.empty_like(v)
-        dv[1:] = v[1:] - v[:-1]
+        np.subtract(v[1:], v[:-1], out=dv[1:])
         if self._last_v is not None and abs(t0_s - self._last_t - self._dt) < 1e-9:
-            dv[0] = v[0] - self._last_v
+            np.subtract(v[0], self._last_v, out=dv[0])
         else:  # no step before it (the first, or after a reset)
             dv[0] = 0.0
-        np.multiply(np.abs(dv), self._inv[1] / self._dt, out=ratios[1])
-        np.multiply(np.abs(rows[:, _TAU]), self._inv[2], out=ratios[2])
         self._last_v = v[-1].copy()
         self._last_t = t0_s + (n - 1) * self._dt
-        peak = ratios.max(axis=2)  # (3, n): each step's largest ratio of each kind
+        # each step's largest ratio of each kind (3, n): speed, acceleration, torque
+        ratios = (np.abs(v) * self._inv[0], np.abs(dv) * (self._inv[1] / self._dt),
+                  np.abs(rows[:, _TAU]) * self._inv[2])
+        peak = np.array([r.max(axis=1) for r in ratios])
         which = 0 if moving else 1
         self._samples[which] += n
         np.maximum(self._max[which], peak.max(axis=1), out=self._max[which])
-        over = np.stack([peak[0] > 1.0, peak[1] > 1.0, peak[2] >= 1.0 - 1e-12])
+        over = peak > 1.0
+        over[2] = peak[2] >= 1.0 - 1e-12  # a torque at its limit was clipped
         any_over = int(over.any(axis=0).sum())
         if any_over:
             if moving:
@@ -140,7 +141,7 @@ class LimitMeter:
         top = float(tops[k])
         if top > self._worst[which][0]:
             kind = int(np.argmax(peak[:, k]))
-            joint = int(np.argmax(ratios[kind, k]))
+            joint = int(np.argmax(ratios[kind][k]))
             self._worst[which] = (top, f"{_KINDS[kind]} of {JOINT_NAMES[joint]} in {phase or '-'} at "
                                        f"t = {t0_s + k * self._dt:.3f} s: {top:.3f} of its limit")
 

@@ -190,6 +190,9 @@ class Arm:
         self._next_step = 0  # the step of the trajectory its next part starts at
         self._next_part = 0
         self.segment_checker: CollisionChecker | None = None
+        # the last trajectory the planner accepted and the world its acceptance check saw (Arm.predict)
+        self._accepted: tuple[Trajectory | None, tuple[np.ndarray, np.ndarray, np.ndarray]] = (
+            None, (np.zeros(0), np.zeros(0), np.zeros(0)))
         self._traj_t0 = 0.0
         self._tallies: dict[str, control.TrackingTally] = {}
         self._tally_total = control.TrackingTally()
@@ -382,6 +385,7 @@ class Arm:
                                              traj.duration_s, res.status.value, slowdown))
         self.trajectory = traj
         self._straight = straight
+        self._accepted = (traj, accept.world_state())  # the trajectory checked, and the world it was checked in
         if self.recorder is not None:  # the tcp's path; an approach goes to the pregrasp of the grasp it chose
             self.recorder.add_plan(name, self.monitor.t, traj)
             if name == "approach":
@@ -554,14 +558,21 @@ class Arm:
         if checker.policy.object_held:
             fixed[h.object_qpos : h.object_qpos + 7] = False
         world_qpos = np.flatnonzero(fixed)
-        checked: list[np.ndarray] = []  # the world when the rest of the trajectory was last found clear
+
+        def key(qpos: np.ndarray, mocap_pos: np.ndarray, mocap_quat: np.ndarray) -> np.ndarray:
+            return np.concatenate((qpos[world_qpos], mocap_pos.ravel(), mocap_quat.ravel()))
+
+        # the world when the rest of the trajectory was last found clear: when it was planned, if this is the
+        # trajectory the planner's acceptance check passed (every check_step_rad, with this checker: finer than here)
+        accepted_traj, accepted_world = self._accepted
+        checked: list[np.ndarray] = [key(*accepted_world)] if accepted_traj is traj else []
 
         def predictor(_: mujoco.MjData, t: float) -> None:
             ts = np.arange(max(t - t_start, from_s), end, 0.01)
             if ts.size == 0:
                 return
             world = self.observer.world()
-            now = np.concatenate((world.qpos[world_qpos], world.mocap_pos.ravel(), world.mocap_quat.ravel()))
+            now = key(world.qpos, world.mocap_pos, world.mocap_quat)
             if checked and float(np.max(np.abs(now - checked[0]))) <= WORLD_STILL:
                 return  # nothing moved since the rest of the trajectory (a superset of what is left) was found clear
             checker.set_world(world)
