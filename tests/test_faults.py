@@ -13,10 +13,13 @@ import json
 import re
 from collections.abc import Callable
 
+import mujoco
+import numpy as np
 import pytest
 
+from pickplace.robot import model
 from pickplace.task.episode import EpisodeConfig, EpisodeResult, run_episode
-from pickplace.task.faults import FaultConfig
+from pickplace.task.faults import FaultConfig, apply_model_faults
 from pickplace.task.machine import MachineConfig
 
 TRANSPORT_PUSH = FaultConfig(transport_push_n=(0.0, 0.0, -40.0), transport_push_start_s=0.2, transport_push_s=0.05)
@@ -246,3 +249,41 @@ def test_fault_config_validation_names_the_field() -> None:
         EpisodeConfig.from_dict({"faults": {"bogus": 1}})
     # the key of earlier versions still works
     assert EpisodeConfig.from_dict({"faults": {"cube_mass_scale": 2.0}}).faults.true_mass_scale == 2.0
+
+
+def _pad_contacts(faults: FaultConfig) -> list[mujoco.MjContact]:
+    """Every contact between a pad and the object with the object put into the left pad (a real collision)."""
+    robot = model.build()
+    apply_model_faults(robot, faults)
+    m, h = robot.mj, robot.handles
+    d = robot.make_data()
+    d.qpos[h.arm_qpos] = robot.home_q
+    mujoco.mj_forward(m, d)
+    d.qpos[h.object_qpos : h.object_qpos + 3] = d.geom_xpos[h.pad_geoms[0]]
+    mujoco.mj_forward(m, d)
+    pads, obj = set(h.pad_geoms.tolist()), h.object_geom_set
+    pairs = [(c, {int(c.geom1), int(c.geom2)}) for c in d.contact[: d.ncon]]
+    found = [c for c, pair in pairs if pair & pads and pair & obj]
+    assert found, "the object put into the pad touches it"
+    return found
+
+
+def test_pad_faults_scale_the_pad_contacts_own_parameters() -> None:
+    """The resolved pad-object contact: nominally the pads' solref and solimp (their solmix weighs 1e6 to the
+    object's 1, hence rel 1e-5) with the object's friction; the pad faults make them the pads' outright, scaled
+    (friction x 0.5, time constant x 3), and leave the impedance and condim as they were."""
+    robot = model.build()
+    m, h = robot.mj, robot.handles
+    pad, obj = int(h.pad_geoms[0]), int(h.object_geoms[0])
+    nominal = _pad_contacts(FaultConfig())
+    faulted = _pad_contacts(FaultConfig(pad_friction_scale=0.5, pad_softness_scale=3.0))
+    for c in nominal:
+        np.testing.assert_allclose(c.solref, m.geom_solref[pad], rtol=1e-5)
+        np.testing.assert_allclose(c.solimp, m.geom_solimp[pad], rtol=1e-5)
+        np.testing.assert_allclose(c.friction[:3], m.geom_friction[obj, [0, 0, 1]], rtol=1e-12)
+    for c, n in zip(faulted, nominal, strict=True):
+        np.testing.assert_allclose(c.solref, m.geom_solref[pad] * [3.0, 1.0], rtol=1e-12)
+        np.testing.assert_allclose(c.solimp, m.geom_solimp[pad], rtol=1e-12)
+        np.testing.assert_allclose(c.friction[:2], 0.5 * n.friction[:2], rtol=1e-12)  # the two sliding directions
+        np.testing.assert_allclose(c.friction[2:], n.friction[2:], rtol=1e-12)  # torsional, rolling
+        assert c.dim == n.dim

@@ -115,16 +115,18 @@ def apply_model_faults(robot: Robot, faults: FaultConfig) -> None:
     """
     m, h = robot.mj, robot.handles
     if faults.pad_friction_scale != 1.0 or faults.pad_softness_scale != 1.0:
-        # The object's priority makes its friction and solref the contact's; give the pads a higher priority
-        # and the scaled values, so only the pad-object contacts change (the object still slides on the table
-        # as before).
+        # Nominally the pads share the object's priority and their solmix makes their own solref and solimp the
+        # contact's, with the object's friction (the pads' own is 0). Raise the pads' priority above the object's
+        # so that every pad-object contact takes the pads' parameters outright, and scale those: the object's
+        # friction times the fault's scale, the pads' own time constant times its, their impedance and the
+        # contact's condim as nominal. Only the pad-object contacts change (the object slides on the table as
+        # before; a pad touching anything else fails the episode anyway).
         g = int(h.object_geoms[0])
         for pad in h.pad_geoms:
+            m.geom_condim[pad] = max(int(m.geom_condim[pad]), int(m.geom_condim[g]))
             m.geom_priority[pad] = int(m.geom_priority[g]) + 1
             m.geom_friction[pad] = m.geom_friction[g] * [faults.pad_friction_scale, 1.0, 1.0]
-            m.geom_solref[pad] = m.geom_solref[g] * [faults.pad_softness_scale, 1.0]
-            m.geom_solimp[pad] = m.geom_solimp[g]
-            m.geom_condim[pad] = m.geom_condim[g]
+            m.geom_solref[pad] = m.geom_solref[pad] * [faults.pad_softness_scale, 1.0]
     if faults.true_mass_scale != 1.0:
         b = h.object_body
         m.body_mass[b] *= faults.true_mass_scale
