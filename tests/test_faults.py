@@ -287,3 +287,23 @@ def test_pad_faults_scale_the_pad_contacts_own_parameters() -> None:
         np.testing.assert_allclose(c.friction[:2], 0.5 * n.friction[:2], rtol=1e-12)  # the two sliding directions
         np.testing.assert_allclose(c.friction[2:], n.friction[2:], rtol=1e-12)  # torsional, rolling
         assert c.dim == n.dim
+
+
+def test_a_lost_grip_is_set_down_before_the_hand_opens() -> None:
+    """The push above slides the cube 3 mm down the pads in transit, the grip no longer squeezing it as a settled
+    grip does: the recovery lowers it straight down onto the table before the pads let go of it (they used to open
+    where the grip failed, dropping it from the transport's height), then picks it again."""
+    config = dataclasses.replace(EpisodeConfig(), faults=TRANSPORT_PUSH, machine=MachineConfig(max_retries=3))
+    r = run_episode(config, 0, record=True)
+    assert r.success, r.failure_reason
+    assert r.recoveries and "open, back off" in r.recoveries[0]
+    tel = r.telemetry
+    assert tel is not None
+    recover = tel.phase == tel.phase_names.index("RECOVER")
+    touched = np.flatnonzero(recover & (tel.pad_force_n > 0.0).any(axis=1))
+    z_rest = config.scene.table_height_m + 0.5 * 0.040  # the 40 mm cube's centre, resting on the table
+    z_let_go = tel.object_pos_m[touched[-1], 2]
+    print(f"\nthe pads let go of the cube with its centre {(z_let_go - z_rest) * 1e3:.2f} mm above its resting height")
+    assert z_let_go - z_rest <= 1e-3
+    after = touched[-1] + np.flatnonzero(recover[touched[-1]:])
+    assert np.all(tel.object_pos_m[after, 2] - z_rest <= 1e-3)  # not dropped, not thrown up

@@ -10,7 +10,9 @@ the arm touched the world             a running trajectory             back off 
 slip, the pads still squeezing it     EXEC_TRANSPORT, DESCEND_PLACE    stop, take the grip as it now is, plan the
                                                                        transport or aim the set-down again (once;
                                                                        then as below)
-slip, lost grip                       CLOSE … DESCEND_PLACE            stop, open, back off, re-observe, regrasp
+slip, lost grip                       CLOSE … DESCEND_PLACE            stop, set it down where the pads still
+                                                                       touch it and the way down is free, open,
+                                                                       back off, re-observe, regrasp
 the held object hit the world         CLOSE … DESCEND_PLACE            the same (the robot itself touched nothing)
 the object moved before the grasp     EXEC_APPROACH, DESCEND           wait for it to rest, re-observe, approach
 the grasp missed, or hit the object   DESCEND                          back off, re-observe, approach again

@@ -111,6 +111,12 @@ RETRACT_CUSHION_M = 2e-3
 SET_DOWN_STOP_SHARE = 0.5
 
 
+#: A recovery that lowers an object whose grip failed onto what is below it aims the tcp this much (m) lower than
+#: where the object would touch the table as the robot believes it sits in the hand: it has slipped since, mostly
+#: downwards, and the descent ends where the surface takes the object's weight.
+RECOVERY_SET_DOWN_OVERSHOOT_M = 5e-3
+
+
 class _SetDown(Exception):
     """The table carries the object being set down (a guarded set-down ends here)."""
 
@@ -920,24 +926,9 @@ class PickPlaceSkill:
         assert self.configs is not None
         robot, d, cfg, monitor, observer = self.robot, self.d, self.cfg, self.monitor, self.observer
         targets = self.configs.targets
-        mass_kg = self.arm.payload.mass_kg if self.arm.payload is not None else 0.0
         z_grasp = float(targets.grasp.translation[2])
-
-        def hook(d: mujoco.MjData) -> None:
-            if float(self.arm.tcp_pose().translation[2]) < z_grasp + 0.003:
-                monitor.allow_object_table = True  # setting it down
-                observer.expect_load(None)
-            monitor(d)
-            if monitor.allow_object_table and observer.touched_down(mass_kg):
-                raise _SetDown
-
         log.info("recovery: setting the %s back down where it was picked", robot.scene.object.name)
-        try:
-            self.arm.vertical(Phase.PLAN_TRANSPORT, z_grasp + PLACE_DROP_M, hook, self.arm.carrying(0.0, True),
-                              self.arm.support_reserve(), self.ik)
-        except _SetDown:  # the table carries it: no need to go further
-            if self.arm.moving:
-                self.arm.stop(settle_s=0.0, share=SET_DOWN_STOP_SHARE)
+        self._lower_onto_support(Phase.PLAN_TRANSPORT, z_grasp + PLACE_DROP_M, z_grasp + 0.003)
         monitor.holding = False
         monitor.allow_object_table = True
         self.arm.payload = None
@@ -956,6 +947,62 @@ class PickPlaceSkill:
         self.arm.linear(Phase.PLAN_TRANSPORT, backed_off(self.arm.tcp_pose(), CLEARANCE_M), checker=self._leaving(),
                         ik=self.ik)
         monitor.allow_hand_object = False
+
+    def _lower_onto_support(self, phase: Phase, target_z: float, allow_below_z: float) -> None:
+        """Lower the held object straight down, the tcp towards ``target_z`` (m), until whatever is below carries
+        it (a guarded set-down: :meth:`~pickplace.task.observe.SimulatorObserver.touched_down`), then bring the arm
+        to rest; the object may touch the table once the tcp is below ``allow_below_z`` (m).
+
+        Raises:
+            PhaseFailed: the straight move down runs into something the held object or the hand may not touch (the
+                geoms named), checked before the arm moves.
+        """
+        monitor, observer = self.monitor, self.observer
+        mass_kg = self.arm.payload.mass_kg if self.arm.payload is not None else 0.0
+
+        def hook(d: mujoco.MjData) -> None:
+            if float(self.arm.tcp_pose().translation[2]) < allow_below_z:
+                monitor.allow_object_table = True  # setting it down
+                observer.expect_load(None)
+            monitor(d)
+            if monitor.allow_object_table and observer.touched_down(mass_kg):
+                raise _SetDown
+
+        try:
+            self.arm.vertical(phase, target_z, hook, self.arm.carrying(0.0, True), self.arm.support_reserve(),
+                              self.ik)
+        except _SetDown:  # the surface carries it: no need to go further
+            if self.arm.moving:
+                self.arm.stop(settle_s=0.0, share=SET_DOWN_STOP_SHARE)
+
+    def _set_down_before_letting_go(self) -> bool:
+        """Lower an object whose grip failed onto whatever is below it while the pads still touch it, so that
+        letting go does not drop it from where the grip failed (the transport's height: onto a wall, off the table
+        or into a roll). Returns whether it was lowered; False where nothing is in the hand any more, or the
+        straight move down is blocked (the hand over a wall or a bin's rim) or fails on the way (then the object
+        is let go where it is, as before)."""
+        if self.arm.payload is None or self.arm.T_tcp_object is None or \
+                not np.any(self.observer.pad_forces() > 0.0):
+            return False
+        scene = self.robot.scene
+        tcp = self.arm.tcp_pose()
+        obj = tcp * self.arm.T_tcp_object
+        lowest = float(np.min(scene.object.geometry().vertices @ obj.rotation[2]) + obj.translation[2])
+        target_z = float(tcp.translation[2]) - (lowest - scene.table_height_m) - RECOVERY_SET_DOWN_OVERSHOOT_M
+        if target_z > float(tcp.translation[2]) - 0.002:
+            return False  # it is down already
+        try:
+            self._lower_onto_support(Phase.RECOVER, target_z, math.inf)
+        except ConfigError:
+            raise
+        except PickPlaceError as exc:
+            log.info("recovery: the %s is let go where it is: %s", scene.object.name, exc)
+            if self.arm.moving:
+                self.arm.stop()
+            return False
+        log.info("recovery: the %s was set down before letting go, the tcp at %.4f m", scene.object.name,
+                 float(self.arm.tcp_pose().translation[2]))
+        return True
 
     def _still_held(self) -> bool:
         """Whether the robot senses the object in the hand: both pads squeezing it with at least the force a
@@ -977,6 +1024,7 @@ class PickPlaceSkill:
         self.monitor.allow_hand_object = True
         self.monitor.allow_object_table = True
         self.arm.stop()  # with the grip as it is: opening at speed would throw whatever is still held
+        self._set_down_before_letting_go()
         self.arm.payload = None
         self.observer.expect_load(None)
         gripper.command(robot, d, False)
