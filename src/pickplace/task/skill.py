@@ -1015,8 +1015,9 @@ class PickPlaceSkill:
         return all(any(name in self._object_names for name in pair) for pair in exc.pairs)
 
     def _recover(self) -> Phase:
-        """Stop, let go, back off upwards, wait for the object to rest wherever it fell, and observe it again for
-        a new approach (with whatever grasp now works)."""
+        """Stop, set a held object down where the way down is free (:meth:`_set_down_before_letting_go`), let go,
+        back off upwards, wait for the object to rest wherever it is, and observe it again for a new approach (with
+        whatever grasp now works)."""
         robot, d, cfg = self.robot, self.d, self.cfg
         scene = robot.scene
         self.monitor.holding = False
