@@ -220,7 +220,7 @@ def replay(tape: Tape, clock: Callable[[], float] = time.perf_counter) -> tuple[
 # --------------------------------------------------------------------------- #
 
 
-#: The clocks the loops can be timed by: ``wall`` (the issue's measure: the episode as a user waits for it) and
+#: The clocks the loops can be timed by: ``wall`` (the episode as a user waits for it) and
 #: ``cpu`` (the thread's processor time: what the loop itself costs, less disturbed by other work on a shared
 #: machine).
 CLOCKS: dict[str, Callable[[], float]] = {"wall": time.perf_counter, "cpu": time.thread_time}
