@@ -639,8 +639,9 @@ class _Segments:
         self.done: dict[bytes, int] = {}  # interior points found valid, in coarse-to-fine order
         self.full: set[bytes] = set()  # every interior point valid (or a piece of such a segment)
         self.blocked: set[bytes] = set()  # an interior point found invalid
+        # the index of the first invalid configuration of a batch, or -1 (:func:`_first_invalid`, resolved once)
         first = getattr(checker, "first_invalid", None)
-        self._first_invalid = first if first is not None else functools.partial(_first_invalid, checker)
+        self.first_invalid = first if first is not None else functools.partial(_first_invalid, checker)
 
     def check(self, qa: np.ndarray, qb: np.ndarray, coarse: bool) -> bool:
         """Whether the segment qa (n,) -> qb (n,), whose ends are valid, passes: all its interior points, or with
@@ -656,7 +657,7 @@ class _Segments:
         want = min(total, _coarse_count(steps, self.gap)) if coarse else total
         done = self.done.get(key, 0)
         if done < want:
-            if self._first_invalid(qa + _fractions(steps)[2 + done: 2 + want] * delta) >= 0:
+            if self.first_invalid(qa + _fractions(steps)[2 + done: 2 + want] * delta) >= 0:
                 self.blocked.add(key)
                 return False
             self.done[key] = done = want
@@ -679,7 +680,7 @@ class _Segments:
         inner = np.flatnonzero(steps > 1)  # (an edge of one step has no interior)
         if inner.size:
             half = np.floor(steps[inner] / 2) / steps[inner]
-            bad = self._first_invalid(qa[inner] + half[:, None] * delta[inner])
+            bad = self.first_invalid(qa[inner] + half[:, None] * delta[inner])
             if bad >= 0:
                 e = fresh[int(inner[bad])]
                 self.blocked.add(keys[e])
@@ -779,7 +780,7 @@ def _shortcut_pass(segs: _Segments, path: np.ndarray, config: PlannerConfig, dra
                    coarse: bool) -> np.ndarray:
     """The random shortcuts (``draws`` (m, 2), sorted pairs in [0, 1)) and the greedy waypoint removal of
     :func:`shortcut` on a path whose segments ``segs`` passed, each candidate checked coarsely if ``coarse``."""
-    first_invalid = segs._first_invalid
+    first_invalid = segs.first_invalid
     path = _without_repeats(np.array(path, dtype=float))
     min_gain, ratio = max(config.shortcut_min_gain_rad, _EPS), 1.0 + config.shortcut_min_gain_ratio
     k = 0  # the next draw; the draws before it are spent

@@ -38,6 +38,7 @@ import dataclasses
 import logging
 import math
 import time
+from collections.abc import Callable
 
 import mujoco
 import numpy as np
@@ -313,11 +314,7 @@ class PickPlaceSkill:
         assert self.configs is not None
         # fast, then slowly onto the object, then the full squeeze, step by step
         drive = gripper.GripDrive(robot, d, True, self.configs.targets.width_m, max(self.configs.chosen.touch_m))
-        monitor = self.monitor
-
-        def hook(d: mujoco.MjData) -> None:
-            drive(d)
-            monitor(d)
+        hook = self._driving(drive)
 
         def gripping() -> bool:
             return (drive.done and gripper.is_settled(robot, d, cfg.finger_settle_speed_m_s)
@@ -598,22 +595,34 @@ class PickPlaceSkill:
         return Phase.DESCEND_PLACE
 
     def _set_down_hook(self) -> control.Hook:
-        """The monitor for a set-down: the object may touch the table once it is within 3 mm of resting on it,
-        which then takes its weight; the set-down ends (:class:`_SetDown`) when the table carries it."""
+        """The monitor for the set-down at the goal: the object may touch the table once it is within 3 mm of resting
+        on it (:meth:`_touch_down_hook`)."""
         assert self.configs is not None
-        monitor, observer = self.monitor, self.observer
+        observer = self.observer
         z_table_touch = float(self.robot.scene.goal_resting_m(self.configs.targets.R_world_object_goal)[2]) + 0.003
+        return self._touch_down_hook(lambda: observer.object_position()[2] < z_table_touch)
+
+    def _touch_down_hook(self, near: Callable[[], bool]) -> control.Hook:
+        """The monitor for lowering the held object onto a surface: once ``near()``, the object may touch the table,
+        which then takes its weight; the move ends (:class:`_SetDown`) when what is below carries it."""
+        monitor, observer = self.monitor, self.observer
         mass_kg = self.arm.payload.mass_kg if self.arm.payload is not None else 0.0
 
         def hook(d: mujoco.MjData) -> None:
-            if observer.object_position()[2] < z_table_touch:
+            if near():
                 monitor.allow_object_table = True  # setting it down
                 observer.expect_load(None)  # the table takes its weight
             monitor(d)
             if monitor.allow_object_table and observer.touched_down(mass_kg):
-                raise _SetDown  # the table carries it: no need to go further
+                raise _SetDown  # the surface carries it: no need to go further
 
         return hook
+
+    def _rest_after_touch_down(self) -> None:
+        """Bring an arm that a surface stopped short of its set-down's end to rest gently (the surface pushes back),
+        not at once by the hold that follows (:data:`SET_DOWN_STOP_SHARE`)."""
+        if self.arm.moving:
+            self.arm.stop(settle_s=0.0, share=SET_DOWN_STOP_SHARE)
 
     def _descend_place(self) -> Phase:
         """Re-aim from the object's pose in the hand *now* (it shifts a little in transit), then set it down.
@@ -670,8 +679,7 @@ class PickPlaceSkill:
             except _SetDown:
                 log.debug("set down at t = %.3f s, the tcp %.2f mm above its target", self.monitor.t,
                           (float(self.arm.tcp_pose().translation[2]) - float(end[2])) * 1e3)
-                if self.arm.moving:  # down early (the object sits lower in the hand): brought to rest gently (the
-                    self.arm.stop(settle_s=0.0, share=SET_DOWN_STOP_SHARE)  # surface pushes back), not by the hold
+                self._rest_after_touch_down()  # down early: the object sits lower in the hand
         self.out.place_line_deviation_max_m = float(np.fmax(self.out.place_line_deviation_max_m, line.max_m))
         return Phase.RELEASE
 
@@ -689,11 +697,7 @@ class PickPlaceSkill:
         self._release_t = self.monitor.t
         geom = gripper.GripperGeometry.measure(robot)
         clear_travel = geom.contact_travel_m(self.configs.targets.width_m) - cfg.release_clearance_m
-        monitor = self.monitor
-
-        def hook(d: mujoco.MjData) -> None:
-            drive(d)
-            monitor(d)
+        hook = self._driving(drive)
 
         def speed() -> float:
             return float(np.linalg.norm(observer.object_velocity()[:3]))
@@ -957,23 +961,12 @@ class PickPlaceSkill:
             PhaseFailed: the straight move down runs into something the held object or the hand may not touch (the
                 geoms named), checked before the arm moves.
         """
-        monitor, observer = self.monitor, self.observer
-        mass_kg = self.arm.payload.mass_kg if self.arm.payload is not None else 0.0
-
-        def hook(d: mujoco.MjData) -> None:
-            if float(self.arm.tcp_pose().translation[2]) < allow_below_z:
-                monitor.allow_object_table = True  # setting it down
-                observer.expect_load(None)
-            monitor(d)
-            if monitor.allow_object_table and observer.touched_down(mass_kg):
-                raise _SetDown
-
+        hook = self._touch_down_hook(lambda: float(self.arm.tcp_pose().translation[2]) < allow_below_z)
         try:
             self.arm.vertical(phase, target_z, hook, self.arm.carrying(0.0, True), self.arm.support_reserve(),
                               self.ik)
         except _SetDown:  # the surface carries it: no need to go further
-            if self.arm.moving:
-                self.arm.stop(settle_s=0.0, share=SET_DOWN_STOP_SHARE)
+            self._rest_after_touch_down()
 
     def _set_down_before_letting_go(self) -> bool:
         """Lower an object whose grip failed onto whatever is below it while the pads still touch it, so that
@@ -1003,6 +996,16 @@ class PickPlaceSkill:
         log.info("recovery: the %s was set down before letting go, the tcp at %.4f m", scene.object.name,
                  float(self.arm.tcp_pose().translation[2]))
         return True
+
+    def _driving(self, drive: gripper.GripDrive) -> control.Hook:
+        """The monitor of a hold while the gripper's drive runs: the drive's command updated after every step."""
+        monitor = self.monitor
+
+        def hook(d: mujoco.MjData) -> None:
+            drive(d)
+            monitor(d)
+
+        return hook
 
     def _still_held(self) -> bool:
         """Whether the robot senses the object in the hand: both pads squeezing it with at least the force a
