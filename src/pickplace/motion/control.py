@@ -1007,14 +1007,17 @@ class _Integral:
 
     def __init__(self, ki: np.ndarray, limit: np.ndarray, period_s: float) -> None:
         self.gain = np.asarray(ki, dtype=float) * period_s
-        self.limit = np.asarray(limit, dtype=float)
+        self.limit = np.broadcast_to(np.asarray(limit, dtype=float), self.gain.shape).copy()
+        self._lower = -self.limit
         self.current = np.zeros_like(self.gain)
 
     def update(self, error: np.ndarray) -> np.ndarray:
         """Add one tick's error (k,); return the integral term (k,) now in force."""
-        self.current += self.gain * error
-        np.clip(self.current, -self.limit, self.limit, out=self.current)
-        return self.current
+        current = self.current
+        current += self.gain * error
+        np.maximum(current, self._lower, out=current)  # np.clip's numbers, without its Python wrapper
+        np.minimum(current, self.limit, out=current)
+        return current
 
 
 def servo_setpoints(arm: ArmModel, q_ref: np.ndarray, qd_ref: np.ndarray, qdd_ref: np.ndarray, kp: np.ndarray,
@@ -1152,14 +1155,17 @@ def _run_joint(
                   rec.saturation_events)
         return rec
 
-    if fast:  # the reference's terms of the law, for every tick at once (elementwise: the same numbers)
+    computed_torque = bandwidth > 0.0 and ff
+    if fast or computed_torque:  # the reference's terms of the law, for every tick at once (elementwise: the same
+        # numbers)
         model, data, qp = arm.model, arm.data, arm._q
         vel = np.zeros((n + 1, model.nv))
         vel[:, :N_ARM] = qd_ref
         accel = np.zeros((n + 1, model.nv))
         accel[:, :N_ARM] = qdd_ref
         damp_ref = arm.damping * qd_ref
-        rnea = pin.rnea
+        rnea, crba, where = pin.rnea, pin.crba, np.where
+        w2, w_damp = bandwidth * bandwidth, 2.0 * zeta_j * bandwidth
 
     def law(k: int, q: np.ndarray, qd: np.ndarray) -> np.ndarray | None:
         nonlocal j, saturated
@@ -1180,6 +1186,18 @@ def _run_joint(
             tau = rnea(model, data, qp, vel[i], accel[i])[:N_ARM] + damp_ref[i]
             tau += kp * e
             tau += kd * (qd_ref[i] - qd)
+        elif computed_torque:  # joint_impedance(bandwidth_rad_s=w, feedforward=True), operation for operation
+            qp[:N_ARM] = q
+            qp[N_ARM:] = qpos[finger]
+            M = crba(model, data, qp)[:N_ARM, :N_ARM]
+            inertia = where(_UPPER, M, M.T)  # crba fills the upper triangle
+            acc = w2 * e
+            acc += w_damp * (qd_ref[i] - qd)
+            tau = inertia.dot(acc)
+            tau += rnea(model, data, qp, vel[i], accel[i])[:N_ARM]
+            tau += damp_ref[i]
+            if integral is not None:
+                tau += integral.update(inertia.dot(e))
         elif bandwidth > 0.0:
             finger_m = float(qpos[finger])
             inertia = arm_inertia(arm, q, finger_m)

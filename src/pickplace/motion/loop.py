@@ -175,13 +175,16 @@ class ControlLoop:
 
     config: LoopConfig = field(default_factory=LoopConfig)
     rng: np.random.Generator | None = None
+    _draws: _Draws | None = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.config, LoopConfig):
             raise ConfigError("loop.config", self.config, "must be a LoopConfig")
-        if self.config.encoder_noise_std_rad > 0.0 and not isinstance(self.rng, np.random.Generator):
-            raise ConfigError("loop.rng", self.rng, "must be a seeded numpy.random.Generator when "
-                                                    "loop.encoder_noise_std_rad > 0")
+        if self.config.encoder_noise_std_rad > 0.0:
+            if not isinstance(self.rng, np.random.Generator):
+                raise ConfigError("loop.rng", self.rng, "must be a seeded numpy.random.Generator when "
+                                                        "loop.encoder_noise_std_rad > 0")
+            object.__setattr__(self, "_draws", _Draws(self.rng))
 
     @property
     def ideal(self) -> bool:
@@ -246,36 +249,54 @@ class ControlLoop:
             T = period * dt
             res, std = cfg.encoder_resolution_rad, cfg.encoder_noise_std_rad
             alpha = 1.0 - math.exp(-2.0 * math.pi * cfg.velocity_cutoff_hz * T) if cfg.velocity_cutoff_hz > 0 else 0.0
+            draws = self._draws if std > 0.0 else None
             pending: deque[tuple[int, np.ndarray]] = deque()
-            q_prev: np.ndarray | None = None
-            v_est = np.array(qvel[arm_v])  # a warm filter: the estimate starts at the arm's velocity
+            # two reading buffers, swapped at each tick (this tick's and the last one's); the velocity estimate is
+            # updated in place (a warm filter: it starts at the arm's velocity) and handed to the law as is
+            q, q_prev = np.empty(N_ARM), np.empty(N_ARM)
+            first = True
+            v_est = np.array(qvel[arm_v])
+            diff = np.empty(N_ARM)
+            divide, rint, multiply, subtract, add = np.divide, np.rint, np.multiply, np.subtract, np.add
+            # the scalars as arrays (a ufunc takes an array operand faster than a Python float; the same numbers)
+            res_, T_, alpha_ = (np.full(N_ARM, x) for x in (res, T, alpha))
+            q_arm = qpos[arm_q] if isinstance(arm_q, slice) else None  # a view when the joints are consecutive
 
             while True:
                 if k % period == 0:
-                    q = np.array(qpos[arm_q])
-                    if res > 0.0:  # round(q / res) * res, in place
-                        np.divide(q, res, out=q)
-                        np.round(q, out=q)
-                        q *= res
-                    if std > 0.0:
-                        assert self.rng is not None
-                        q += self.rng.normal(0.0, std, N_ARM)
+                    q, q_prev = q_prev, q
+                    q[:] = qpos[arm_q] if q_arm is None else q_arm
+                    if res > 0.0:  # round(q / res) * res, in place (rint: numpy's round to 0 decimals)
+                        divide(q, res_, out=q)
+                        rint(q, out=q)
+                        multiply(q, res_, out=q)
+                    if draws is not None:
+                        add(q, draws.next(std), out=q)
                     if noise is not None:
                         q += noise.sample()
                     if alpha > 0.0:
-                        if q_prev is not None:
-                            v_est += alpha * ((q - q_prev) / T - v_est)
-                        q_prev = q
-                        qd = v_est.copy()
+                        if not first:  # v += alpha ((q - q_prev) / T - v), operation for operation
+                            subtract(q, q_prev, out=diff)
+                            divide(diff, T_, out=diff)
+                            subtract(diff, v_est, out=diff)
+                            multiply(alpha_, diff, out=diff)
+                            add(v_est, diff, out=v_est)
+                        first = False
+                        qd = v_est
                     else:
                         qd = np.array(qvel[arm_v])
                     tau = law(k, q, qd)
                     if tau is None:
                         return LoopRun(k, ticks)
                     ticks += 1
-                    pending.append((k + latency, np.array(tau)))
-                while pending and pending[0][0] <= k:
+                    if latency == 0:
+                        ctrl[arm_u] = tau
+                    else:
+                        pending.append((k + latency, np.array(tau)))
+                if pending and pending[0][0] <= k:
                     ctrl[arm_u] = pending.popleft()[1]
+                    while pending and pending[0][0] <= k:
+                        ctrl[arm_u] = pending.popleft()[1]
                 step(m, d)
                 if tape is not None:
                     tape.record()
@@ -457,6 +478,30 @@ def _split(hook: Hook | Measured | None, robot: Robot, d: mujoco.MjData, rows: i
     if isinstance(hook, Measured):
         return hook.step, _Tape(robot, d, hook.tape, rows)
     return hook, None
+
+
+class _Draws:
+    """The encoders' noise, drawn from the loop's generator :data:`DRAW_CHUNK` ticks at a time and handed out a
+    tick's row at a time, across the loop's runs: the same numbers, in the same order, as one draw of six per tick
+    (``Generator.normal`` fills an array in the order single draws would come), for a tenth of the calls."""
+
+    def __init__(self, rng: np.random.Generator) -> None:
+        self._rng = rng
+        self._rows = np.empty((0, N_ARM))
+        self._std = math.nan
+        self._i = 0
+
+    def next(self, std: float) -> np.ndarray:
+        """The next tick's noise (6,) (rad) of standard deviation ``std`` (rad); valid until the next call."""
+        if self._i == len(self._rows) or std != self._std:
+            self._rows, self._std, self._i = self._rng.normal(0.0, std, (DRAW_CHUNK, N_ARM)), std, 0
+        row = self._rows[self._i]
+        self._i += 1
+        return row
+
+
+#: Ticks of encoder noise a loop draws at once (:class:`_Draws`).
+DRAW_CHUNK = 256
 
 
 class ServoGains:

@@ -379,6 +379,8 @@ class SensorObserver:
         m, h = robot.mj, robot.handles
         self._tcp = h.tcp_site
         self._hand = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "gripper_base")
+        self._hand_acc, self._hand_vel = np.zeros(6), np.zeros(6)  # the hand's motion (_read_hand_motion)
+        self._gripper_actuator = int(robot.handles.gripper_actuator)
         self._hand_mass = float(m.body_subtreemass[self._hand])
         self._gripper = gripper.GripperGeometry.measure(robot)  # its pads, for the grasp model's contacts
         self._pads_around_m = float(np.max(robot.scene.object.geometry().extent_m)) / 2 + PADS_AROUND_M
@@ -572,24 +574,27 @@ class SensorObserver:
         accelerometer's vertical acceleration of the hand's centre of mass (m/s^2), read together."""
         mujoco.mj_rnePostConstraint(self.robot.mj, self.d)  # the forces and accelerations of this state
         f = float(self.d.cfrc_int[self._hand, 5])  # the wrist's force on the hand (world frame)
+        self._read_hand_motion()
         a = self._hand_acceleration_z(self.d.subtree_com[self._hand])
         return f + float(self.rng.normal(0.0, self.sensing.wrist_force_noise_n)), a
+
+    def _read_hand_motion(self) -> None:
+        """Read the hand's spatial acceleration (of the last ``mj_rnePostConstraint``, :meth:`_wrist`) and velocity
+        (world orientation, at its origin) for :meth:`_hand_acceleration_z`."""
+        m, d = self.robot.mj, self.d
+        mujoco.mj_objectAcceleration(m, d, mujoco.mjtObj.mjOBJ_BODY, self._hand, self._hand_acc, 0)
+        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, self._hand, self._hand_vel, 0)
 
     def _hand_acceleration_z(self, at: np.ndarray | None = None) -> float:
         """The tool's accelerometer: the hand's vertical acceleration (m/s^2) at its origin, or carried to the
         point ``at`` (3,) (m) of the hand (rigid-body kinematics with the hand's angular velocity and
-        acceleration: where the held object is). Reads the accelerations of the last
-        ``mj_rnePostConstraint`` (:meth:`_wrist`)."""
-        m, d = self.robot.mj, self.d
-        acc = np.zeros(6)
-        mujoco.mj_objectAcceleration(m, d, mujoco.mjtObj.mjOBJ_BODY, self._hand, acc, 0)
+        acceleration: where the held object is), from the motion :meth:`_read_hand_motion` read."""
+        acc = self._hand_acc
         a_z = float(acc[5]) - self._g  # it reads the specific force; less gravity's: the acceleration
         if at is not None:
-            vel = np.zeros(6)
-            mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, self._hand, vel, 0)
-            rx, ry, rz = (float(x) for x in at - d.xpos[self._hand])
+            rx, ry, rz = (at - self.d.xpos[self._hand]).tolist()
             ax, ay = float(acc[0]), float(acc[1])
-            wx, wy, wz = float(vel[0]), float(vel[1]), float(vel[2])
+            wx, wy, wz = self._hand_vel[:3].tolist()
             # the z components of alpha x r and of w x (w x r) = w (w . r) - r (w . w)
             a_z += ax * ry - ay * rx + wz * (wx * rx + wy * ry + wz * rz) - rz * (wx * wx + wy * wy + wz * wz)
         return a_z
@@ -606,7 +611,8 @@ class SensorObserver:
         f, a = self._wrist()
         load = f - self._tare - self._hand_mass * (self._g + a)
         a_object = self._hand_acceleration_z(self.object_position()) if self._T_tcp_object is not None else a
-        self._sample_t, self._sample = t, (float(self.pad_forces().sum()), load, self._g + a_object)
+        grip = max(0.0, float(self.d.actuator_force[self._gripper_actuator]))  # pad_forces().sum(), exactly
+        self._sample_t, self._sample = t, (grip, load, self._g + a_object)
         return self._sample
 
     def airborne(self, z0_m: float, mass_kg: float) -> bool:
