@@ -60,6 +60,29 @@ HAND_RADIUS_M = 0.15
 SEARCH_MARGIN_M = 0.03
 
 
+def _masked_median(values: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """Each row's median over its entries where ``ok``: the value ``np.median(values[i][ok[i]])`` gives, for
+    all rows (k, n) at once (every row needs at least one ``ok`` entry).
+
+    A row's missing entries are filled half with -inf and half with +inf (one -inf more where their number is
+    odd), so that the middle of the filled row is the middle of its valid entries; one ``np.median`` along the
+    rows then does the work of ``k`` calls.
+    """
+    bad = ~ok
+    nbad = bad.sum(axis=1)
+    low = bad & (np.cumsum(bad, axis=1) <= (nbad // 2)[:, None])
+    filled = np.where(ok, values, np.where(low, -np.inf, np.inf))
+    odd = nbad % 2 == 1
+    if not np.any(odd):
+        return np.median(filled, axis=1)
+    out = np.empty(len(values))
+    if not np.all(odd):
+        out[~odd] = np.median(filled[~odd], axis=1)
+    extra = np.full((int(odd.sum()), 1), -np.inf)
+    out[odd] = np.median(np.concatenate([filled[odd], extra], axis=1), axis=1)
+    return out
+
+
 def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray, config: CameraConfig,
                     max_shift_px: int = 10) -> tuple[np.ndarray, np.ndarray]:
     """How far the scene the sensor sees is displaced from the robot's model of it, around ``region``.
@@ -70,6 +93,11 @@ def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray,
     a pixel on the bilinearly interpolated measured image. The silhouette's edges against the
     background fix the shift; its surfaces fix the depth. Locally, that is a displacement of the points by
     ``R_world_camera @ (du z / f, dv z / f, dz)`` (z the region's median depth, f the focal length).
+
+    The whole-pixel search finds the bottom of the cost's basin on every other shift of the range, over every
+    other pixel of the region, then descends from there over whole pixels (3 x 3 shifts at a time, all the
+    region's pixels) to a minimum; the half and tenth pixels around it are all evaluated (3 x 3, then 11 x 11
+    shifts). The costs of a stage's shifts are evaluated together (:func:`_masked_median`).
 
     Args:
         measured: The sensor's depth image (H, W) (m; 0 where missing).
@@ -90,34 +118,63 @@ def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray,
                             "object against it)")
     h, w = measured.shape
     z_model = model[v, u]
+    # the measured image in a frame of missing pixels wider than any shift: no index leaves it
+    pad = max_shift_px + 2
+    framed = np.zeros((h + 2 * pad, w + 2 * pad))
+    framed[pad:pad + h, pad:pad + w] = measured
+    flat, row = framed.ravel(), w + 2 * pad
+    every = np.arange(len(v))
 
-    def residuals_at(du: float, dv: float) -> tuple[np.ndarray, np.ndarray]:
-        uu, vv = u + du, v + dv
-        inside = (uu >= 0) & (uu <= w - 1) & (vv >= 0) & (vv <= h - 1)
-        if float(du).is_integer() and float(dv).is_integer():
-            z = measured[np.clip(vv, 0, h - 1).astype(int), np.clip(uu, 0, w - 1).astype(int)]
+    def costs(shifts: np.ndarray, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The median absolute residual (m) and the median residual dz (m) at each shift (k, 2) (du, dv) (px)
+        over ``pixels`` (indices into the region's); inf where fewer than half of them are valid."""
+        uu, vv, zm = u[pixels], v[pixels], z_model[pixels]
+        du, dv = shifts[:, :1], shifts[:, 1:]
+        if np.all(shifts == np.round(shifts)):
+            z = flat[(vv + pad) * row + uu + pad + (dv * row + du).astype(int)]
         else:
-            z = ndimage.map_coordinates(measured, [np.clip(vv, 0, h - 1), np.clip(uu, 0, w - 1)], order=1)
-        ok = inside & (z > 0.0)
-        return z - z_model, ok
+            z = ndimage.map_coordinates(framed, [vv + pad + dv, uu + pad + du], order=1)
+            # between the image's last pixel and the frame: outside, as beyond it
+            z[(uu + du < 0) | (uu + du > w - 1) | (vv + dv < 0) | (vv + dv > h - 1)] = 0.0
+        ok = z > 0.0
+        r = z - zm
+        cost, dz = np.full(len(shifts), np.inf), np.zeros(len(shifts))
+        enough = ok.sum(axis=1) >= len(pixels) // 2
+        if np.any(enough):
+            r, ok = r[enough], ok[enough]
+            dz[enough] = _masked_median(r, ok)
+            cost[enough] = _masked_median(np.abs(r - dz[enough][:, None]), ok)
+        return cost, dz
 
-    def cost(du: float, dv: float) -> tuple[float, float]:
-        r, ok = residuals_at(du, dv)
-        if ok.sum() < len(v) // 2:
-            return np.inf, 0.0
-        dz = float(np.median(r[ok]))
-        return float(np.median(np.abs(r[ok] - dz))), dz
+    def grid(centre: np.ndarray, step: float, span: int) -> np.ndarray:
+        k = step * np.arange(-span, span + 1)
+        dv, du = np.meshgrid(centre[1] + k, centre[0] + k, indexing="ij")
+        return np.column_stack([du.ravel(), dv.ravel()])
 
-    # coarse to fine: whole pixels over the search range, then half and tenth pixels around the best
-    best = (np.inf, 0.0, 0.0, 0.0)
-    for step, span in ((1.0, max_shift_px), (0.5, 1), (0.1, 5)):
-        u0, v0 = best[1], best[2]
-        for dv in v0 + step * np.arange(-span, span + 1):
-            for du in u0 + step * np.arange(-span, span + 1):
-                c, dz = cost(float(du), float(dv))
-                if c < best[0]:
-                    best = (c, float(du), float(dv), dz)
-    _, du, dv, dz = best
+    # whole pixels: the basin's bottom on every other shift and pixel, then a descent on all pixels
+    coarse = grid(np.zeros(2), 2.0, max_shift_px // 2)
+    c, _ = costs(coarse, every[::2])
+    centre = coarse[int(np.argmin(c))]
+    known: dict[tuple[int, int], tuple[float, float]] = {}
+    while True:
+        ring = [s for s in grid(centre, 1.0, 1) if np.all(np.abs(s) <= max_shift_px)]
+        new = [s for s in ring if (int(s[0]), int(s[1])) not in known]
+        if new:
+            for s, cs, dzs in zip(new, *costs(np.array(new), every), strict=True):
+                known[int(s[0]), int(s[1])] = (float(cs), float(dzs))
+        step_to = min(ring, key=lambda s: known[int(s[0]), int(s[1])][0])
+        if not known[int(step_to[0]), int(step_to[1])][0] < known[int(centre[0]), int(centre[1])][0]:
+            break
+        centre = step_to
+    best = (*known[int(centre[0]), int(centre[1])], centre)
+    # half and tenth pixels around it
+    for step, span in ((0.5, 1), (0.1, 5)):
+        shifts = grid(best[2], step, span)
+        cs, dzs = costs(shifts, every)
+        i = int(np.argmin(cs))
+        if cs[i] < best[0]:
+            best = (float(cs[i]), float(dzs[i]), shifts[i])
+    _, dz, (du, dv) = best
     z = float(np.median(z_model))
     f = config.focal_px
     return config.R_world_camera @ np.array([du * z / f, dv * z / f, dz]), np.array([du, dv])
