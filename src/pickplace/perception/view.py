@@ -226,11 +226,16 @@ class TableCamera:
         """Release the OpenGL context."""
         self.camera.close()
 
-    def _scene(self, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-        """The exact depth image of the scene now, seen from where the camera really is, and the pixels of what
-        the robot knows is there (renders: the frames of one look share them; each has its own noise,
-        :meth:`_frame`)."""
-        return self.camera.render_depth(d, seen_from=self.real), self.camera.render_mask(d, self.known)
+    def _scene(self, d: mujoco.MjData, own: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """The exact depth image of the scene now, seen from where the camera really is, the pixels of what
+        the robot knows is there, and (``own``) the robot's model of the scene: its depth rendered where it
+        believes the camera is, from the same render as those pixels (renders: the frames of one look share
+        them; each has its own noise, :meth:`_frame`)."""
+        exact = self.camera.render_depth(d, seen_from=self.real)
+        if own:
+            model, known = self.camera.render_view(d, self.known)
+            return exact, known, model
+        return exact, self.camera.render_mask(d, self.known), None
 
     def _frame(self, exact: np.ndarray) -> np.ndarray:
         """One depth frame as the sensor reports it (its noise drawn now)."""
@@ -266,10 +271,10 @@ class TableCamera:
         centre = T_world_object.act(self._centre_local)
         return points[np.linalg.norm(points - centre, axis=1) < self._radius_m]
 
-    def _own_hand(self, d: mujoco.MjData, known: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The robot's model of itself rendered where it believes the camera is (H, W) (m), and its own pixels
-        near the tcp (H, W) (bool): what :meth:`_hand_offset` matches."""
-        own = self.camera.render_depth(d, hide_object=True)
+    def _own_hand(self, d: mujoco.MjData, known: np.ndarray, own: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The robot's model of the scene rendered where it believes the camera is (H, W) (m) (:meth:`_scene`:
+        at the pixels of its own links, their depth), and its own pixels near the tcp (H, W) (bool): what
+        :meth:`_hand_offset` matches."""
         tcp = d.site_xpos[self.robot.handles.tcp_site]
         own_px = known & (own > 0.0)
         hand = np.zeros(known.shape, dtype=bool)  # only those pixels are back-projected
@@ -304,9 +309,10 @@ class TableCamera:
         t0 = time.perf_counter()
         try:
             window = None if near is None else self._window(near)
-            exact, known = self._scene(d)
+            exact, known, model = self._scene(d, own=from_hand)
             if from_hand:
-                own, hand = self._own_hand(d, known)
+                assert model is not None
+                own, hand = self._own_hand(d, known, model)
             else:
                 offset, mask = np.zeros(3), ndimage.binary_dilation(known, iterations=MASK_MARGIN_PX)
             clouds = []
@@ -350,9 +356,10 @@ class TableCamera:
         """
         t0 = time.perf_counter()
         try:
-            exact, known = self._scene(d)
+            exact, known, model = self._scene(d, own=True)
+            assert model is not None
             depth = self._frame(exact)
-            offset, mask = self._hand_offset(depth, known, *self._own_hand(d, known))
+            offset, mask = self._hand_offset(depth, known, *self._own_hand(d, known, model))
             points = self._near(point_cloud(depth, self.config, ~mask & self._window(guess)) - offset, guess)
             points = points[points[:, 2] > self.robot.scene.table_height_m + self.clearance_m]
             est = fit_held_pose(points, self.obj, guess, self.rng, model=self.model, free_axes=free_axes)
