@@ -13,8 +13,9 @@ point's residual is its distance to the tangent plane of the nearest sample (poi
 spacing does not bias it on flat faces), or, where it is further from that sample than the samples' spacing
 (beyond a face's edge, where the plane says nothing), that distance less the spacing.
 ``scipy.optimize.least_squares`` minimises them (soft L1 loss, so
-that a few stray points do not pull it; the residuals' Jacobian analytic, with the nearest samples held fixed,
-:meth:`SurfaceModel.residuals_and_gradients`) from several starting yaws across the object's symmetry. The result
+that a few stray points do not pull it; for the resting fit with the residuals' analytic Jacobian, the nearest
+samples held fixed, :meth:`SurfaceModel.residuals_and_gradients`) from several starting yaws across the object's
+symmetry. The result
 reports the RMS residual (m) and how many points it used.
 """
 
@@ -266,21 +267,10 @@ def fit_held_pose(points: np.ndarray, obj: ObjectConfig, guess: pin.SE3, rng: np
     R, t0 = guess.rotation, guess.translation.copy()
     free = np.eye(3) if free_axes is None else np.asarray(free_axes, dtype=float).reshape(3, -1)
 
-    d_local = -(R.T @ free)  # d q / d s (3, k): q = R^T (p - t0 - free s)
-    evaluated: dict[str, np.ndarray] = {}
-
     def residuals(s: np.ndarray) -> np.ndarray:
-        r, grad = model.residuals_and_gradients((points - (t0 + free @ s)) @ R)
-        evaluated.update(s=s.copy(), grad=grad)
-        return r
+        return model.residuals((points - (t0 + free @ s)) @ R)
 
-    def jacobian(s: np.ndarray) -> np.ndarray:
-        if "s" not in evaluated or not np.array_equal(evaluated["s"], s):
-            residuals(s)
-        return evaluated["grad"] @ d_local
-
-    sol = least_squares(residuals, np.zeros(free.shape[1]), jac=jacobian, loss="soft_l1", f_scale=0.002,
-                        x_scale=0.01)
+    sol = least_squares(residuals, np.zeros(free.shape[1]), loss="soft_l1", f_scale=0.002, x_scale=0.01)
     r = residuals(sol.x)
     return PoseEstimate(pin.SE3(R.copy(), t0 + free @ sol.x), float(np.sqrt(np.mean(r**2))), len(points))
 

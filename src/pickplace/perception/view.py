@@ -94,10 +94,10 @@ def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray,
     background fix the shift; its surfaces fix the depth. Locally, that is a displacement of the points by
     ``R_world_camera @ (du z / f, dv z / f, dz)`` (z the region's median depth, f the focal length).
 
-    The whole-pixel search finds the bottom of the cost's basin on every other shift of the range, over every
-    other pixel of the region, then descends from there over whole pixels (3 x 3 shifts at a time, all the
-    region's pixels) to a minimum; the half and tenth pixels around it are all evaluated (3 x 3, then 11 x 11
-    shifts). The costs of a stage's shifts are evaluated together (:func:`_masked_median`).
+    Every shift of a stage is evaluated (all whole pixels of the range; then 3 x 3 half and 11 x 11 tenth
+    pixels around the best so far), the costs of a stage's shifts together (:func:`_masked_median`). (A coarser
+    whole-pixel search, every other shift and then a descent, was tried: the cost can have two minima a pixel or
+    two apart, and it found the other one.)
 
     Args:
         measured: The sensor's depth image (H, W) (m; 0 where missing).
@@ -123,12 +123,11 @@ def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray,
     framed = np.zeros((h + 2 * pad, w + 2 * pad))
     framed[pad:pad + h, pad:pad + w] = measured
     flat, row = framed.ravel(), w + 2 * pad
-    every = np.arange(len(v))
+    uu, vv, zm = u, v, z_model
 
-    def costs(shifts: np.ndarray, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The median absolute residual (m) and the median residual dz (m) at each shift (k, 2) (du, dv) (px)
-        over ``pixels`` (indices into the region's); inf where fewer than half of them are valid."""
-        uu, vv, zm = u[pixels], v[pixels], z_model[pixels]
+    def costs(shifts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The median absolute residual (m) and the median residual dz (m) at each shift (k, 2) (du, dv) (px);
+        inf where fewer than half of the region's pixels are valid."""
         du, dv = shifts[:, :1], shifts[:, 1:]
         if np.all(shifts == np.round(shifts)):
             z = flat[(vv + pad) * row + uu + pad + (dv * row + du).astype(int)]
@@ -139,7 +138,7 @@ def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray,
         ok = z > 0.0
         r = z - zm
         cost, dz = np.full(len(shifts), np.inf), np.zeros(len(shifts))
-        enough = ok.sum(axis=1) >= len(pixels) // 2
+        enough = ok.sum(axis=1) >= len(zm) // 2
         if np.any(enough):
             r, ok = r[enough], ok[enough]
             dz[enough] = _masked_median(r, ok)
@@ -151,26 +150,11 @@ def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray,
         dv, du = np.meshgrid(centre[1] + k, centre[0] + k, indexing="ij")
         return np.column_stack([du.ravel(), dv.ravel()])
 
-    # whole pixels: the basin's bottom on every other shift and pixel, then a descent on all pixels
-    coarse = grid(np.zeros(2), 2.0, max_shift_px // 2)
-    c, _ = costs(coarse, every[::2])
-    centre = coarse[int(np.argmin(c))]
-    known: dict[tuple[int, int], tuple[float, float]] = {}
-    while True:
-        ring = [s for s in grid(centre, 1.0, 1) if np.all(np.abs(s) <= max_shift_px)]
-        new = [s for s in ring if (int(s[0]), int(s[1])) not in known]
-        if new:
-            for s, cs, dzs in zip(new, *costs(np.array(new), every), strict=True):
-                known[int(s[0]), int(s[1])] = (float(cs), float(dzs))
-        step_to = min(ring, key=lambda s: known[int(s[0]), int(s[1])][0])
-        if not known[int(step_to[0]), int(step_to[1])][0] < known[int(centre[0]), int(centre[1])][0]:
-            break
-        centre = step_to
-    best = (*known[int(centre[0]), int(centre[1])], centre)
-    # half and tenth pixels around it
-    for step, span in ((0.5, 1), (0.1, 5)):
+    # every whole pixel of the range, then half and tenth pixels around the best
+    best = (np.inf, 0.0, np.zeros(2))
+    for step, span in ((1.0, max_shift_px), (0.5, 1), (0.1, 5)):
         shifts = grid(best[2], step, span)
-        cs, dzs = costs(shifts, every)
+        cs, dzs = costs(shifts)
         i = int(np.argmin(cs))
         if cs[i] < best[0]:
             best = (float(cs[i]), float(dzs[i]), shifts[i])
