@@ -190,6 +190,63 @@ class DepthCamera:
         self._renderer.enable_depth_rendering()
         self._cam = _free_camera(c)
 
+    def _render(self, data: mujoco.MjData, camera: mujoco.MjvCamera, option: mujoco.MjvOption, depth: bool = True,
+                bodies: frozenset[int] | None = None) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """One render of the scene: its exact depth (H, W) (m) if ``depth``, and which pixels show a geom of one of
+        ``bodies`` first (H, W) (bool) if ``bodies`` is given, both read from the same image.
+
+        What ``mujoco.Renderer.render`` does in its depth and its segmentation modes (both render with the
+        segmentation flags: the same image), with both buffers read at once: MuJoCo's depth buffer converted to
+        metric depth as it converts it (float32 as it returns it), and the segmentation colours (the scene's geom
+        index plus one) looked up in a table of the scene's geoms. Uses the renderer's OpenGL and MuJoCo render
+        contexts (``_gl_context``, ``_mjr_context``: the mujoco 3.x-4.x ``Renderer``'s).
+        """
+        r = self._renderer
+        r.update_scene(data, camera=camera, scene_option=option)
+        scene, ctx, rect = r.scene, r._mjr_context, mujoco.MjrRect(0, 0, r.width, r.height)
+        if ctx is None:
+            raise RuntimeError("render cannot be called after close")
+        if r._gl_context is not None:
+            r._gl_context.make_current()
+        flags = scene.flags.copy()
+        scene.flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = True
+        scene.flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = True
+        zbuf = np.empty((r.height, r.width), dtype=np.float32) if depth else None
+        rgb = np.empty((r.height, r.width, 3), dtype=np.uint8) if bodies is not None else None
+        try:
+            mujoco.mjr_render(rect, scene, ctx)
+            mujoco.mjr_readPixels(rgb, zbuf, rect, ctx)
+        finally:
+            np.copyto(scene.flags, flags)
+        z = None if zbuf is None else np.flipud(self._metric(zbuf)).astype(float)
+        mask = None
+        if rgb is not None:
+            assert bodies is not None
+            lut = np.zeros(scene.ngeom + 1, dtype=bool)  # by segmentation id (0: the background)
+            geom_body, geom = self._m.geom_bodyid, int(mujoco.mjtObj.mjOBJ_GEOM)
+            for g in scene.geoms[:scene.ngeom]:
+                if g.segid >= 0 and g.objtype == geom and 0 <= g.objid < len(geom_body):
+                    lut[g.segid + 1] = int(geom_body[g.objid]) in bodies
+            if scene.ngeom < 255:  # ids in the red channel only
+                seg = rgb[..., 0]
+            else:
+                c = rgb.astype(np.uint32)
+                seg = np.minimum(c[..., 0] + (c[..., 1] << 8) + (c[..., 2] << 16), scene.ngeom)
+            mask = np.flipud(lut[seg])
+        return z, mask
+
+    def _metric(self, zbuf: np.ndarray) -> np.ndarray:
+        """MuJoCo's (reversed-Z, perspective) depth buffer (H, W) as metric depth along the optical axis (m),
+        float32, computed as ``mujoco.Renderer.render`` computes it."""
+        m = self._m
+        zfar = np.float32(m.vis.map.zfar * m.stat.extent)
+        znear = np.float32(m.vis.map.znear * m.stat.extent)
+        c_coef = -(zfar + znear) / (zfar - znear)
+        d_coef = -(np.float32(2) * zfar * znear) / (zfar - znear)
+        c_coef = np.float32(-0.5) * c_coef - np.float32(0.5)
+        d_coef = np.float32(-0.5) * d_coef
+        return (d_coef / (zbuf.astype(np.float64) + c_coef)).astype(np.float32)
+
     def render_depth(self, data: mujoco.MjData, seen_from: CameraConfig | None = None,
                      hide_object: bool = False) -> np.ndarray:
         """The exact depth (H, W) (m) along the optical axis of every pixel, from the simulation as it is.
@@ -210,25 +267,26 @@ class DepthCamera:
                                   f"must have this camera's image size and field of view ({c.width_px}, "
                                   f"{c.height_px}, {c.vertical_fov_rad})")
             camera = _free_camera(seen_from)
-        self._renderer.update_scene(data, camera=camera, scene_option=self._known if hide_object else self._seen)
-        return np.asarray(self._renderer.render(), dtype=float).copy()
+        z, _ = self._render(data, camera, self._known if hide_object else self._seen)
+        assert z is not None
+        return z
 
     def render_mask(self, data: mujoco.MjData, bodies: frozenset[int]) -> np.ndarray:
         """Which pixels (H, W) show a geom of one of ``bodies`` first (bool): a self-filter, for the parts of the
         scene the robot knows (its own links at their known configuration, the obstacles of its map)."""
-        self._renderer.disable_depth_rendering()
-        self._renderer.enable_segmentation_rendering()
-        try:
-            self._renderer.update_scene(data, camera=self._cam, scene_option=self._seen)
-            seg = np.asarray(self._renderer.render())
-        finally:
-            self._renderer.disable_segmentation_rendering()
-            self._renderer.enable_depth_rendering()
-        ids, types = seg[..., 0], seg[..., 1]
-        geom_body = self._m.geom_bodyid
-        is_geom = (types == int(mujoco.mjtObj.mjOBJ_GEOM)) & (ids >= 0)
-        body = np.where(is_geom, geom_body[np.clip(ids, 0, len(geom_body) - 1)], -1)
-        return np.isin(body, list(bodies))
+        _, mask = self._render(data, self._cam, self._seen, depth=False, bodies=bodies)
+        assert mask is not None
+        return mask
+
+    def render_view(self, data: mujoco.MjData, bodies: frozenset[int]) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`render_depth` (the scene as seen, from the config's pose) and :meth:`render_mask` from one
+        render: the depth (H, W) (m) and the pixels of ``bodies`` (H, W) (bool). Where a pixel shows one of
+        ``bodies`` first, its depth is that body's, the depth ``hide_object`` gives there too. (Read together
+        with the colours, a depth may differ from :meth:`render_depth`'s in the float32 depth buffer's last bit:
+        0.5 um at 1.6 m.)"""
+        z, mask = self._render(data, self._cam, self._seen, bodies=bodies)
+        assert z is not None and mask is not None
+        return z, mask
 
     def close(self) -> None:
         """Release the OpenGL context."""

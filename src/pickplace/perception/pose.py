@@ -13,7 +13,9 @@ point's residual is its distance to the tangent plane of the nearest sample (poi
 spacing does not bias it on flat faces), or, where it is further from that sample than the samples' spacing
 (beyond a face's edge, where the plane says nothing), that distance less the spacing.
 ``scipy.optimize.least_squares`` minimises them (soft L1 loss, so
-that a few stray points do not pull it) from several starting yaws across the object's symmetry. The result
+that a few stray points do not pull it; for the resting fit with the residuals' analytic Jacobian, the nearest
+samples held fixed, :meth:`SurfaceModel.residuals_and_gradients`) from several starting yaws across the object's
+symmetry. The result
 reports the RMS residual (m) and how many points it used.
 """
 
@@ -147,9 +149,20 @@ class SurfaceModel:
 
     def residuals(self, local: np.ndarray) -> np.ndarray:
         """Distances (N,) (m) of points (N, 3) given in the object's frame from its surface."""
+        return self.residuals_and_gradients(local)[0]
+
+    def residuals_and_gradients(self, local: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`residuals` (N,) (m) and their gradients (N, 3) with respect to the points (the nearest sample
+        held fixed: the plane's normal, signed, or the unit vector from the sample)."""
         dist, k = self.tree.query(local)
-        plane = np.abs(np.einsum("ij,ij->i", local - self.samples[k], self.normals[k]))
-        return np.maximum(plane, dist - self.spacing_m)  # off the surface's edge, the plane alone would say 0
+        off = local - self.samples[k]
+        normal = self.normals[k]
+        signed = np.einsum("ij,ij->i", off, normal)
+        plane = np.abs(signed)
+        edge = dist - self.spacing_m
+        beyond = edge > plane  # off the surface's edge, the plane alone would say 0
+        grad = np.where(beyond[:, None], off / np.maximum(dist, 1e-12)[:, None], np.sign(signed)[:, None] * normal)
+        return np.maximum(plane, edge), grad
 
 
 def _subset(points: np.ndarray, obj: ObjectConfig, rng: np.random.Generator | None) -> np.ndarray:
@@ -182,8 +195,23 @@ def fit_resting_pose(points: np.ndarray, obj: ObjectConfig, table_height_m: floa
     model = model if model is not None else SurfaceModel(obj)
     z0 = table_height_m - model.z_min_m
 
+    evaluated: dict[str, np.ndarray] = {}
+
     def residuals(x: np.ndarray) -> np.ndarray:
-        return model.residuals((points - np.array([x[0], x[1], z0])) @ rot_z(x[2]))  # R^T (p - t), row by row
+        local = (points - np.array([x[0], x[1], z0])) @ rot_z(x[2])  # R^T (p - t), row by row
+        r, grad = model.residuals_and_gradients(local)
+        evaluated.update(x=x.copy(), local=local, grad=grad)
+        return r
+
+    def jacobian(x: np.ndarray) -> np.ndarray:
+        """d residuals / d (x, y, yaw) (N, 3): the points' gradients through q = R(yaw)^T (p - t)."""
+        if "x" not in evaluated or not np.array_equal(evaluated["x"], x):
+            residuals(x)
+        q, g = evaluated["local"], evaluated["grad"]
+        c, s = math.cos(x[2]), math.sin(x[2])
+        # dq/dx = -(c, -s, 0), dq/dy = -(s, c, 0), dq/dyaw = (q_y, -q_x, 0)
+        return np.column_stack([-(g[:, 0] * c - g[:, 1] * s), -(g[:, 0] * s + g[:, 1] * c),
+                                g[:, 0] * q[:, 1] - g[:, 1] * q[:, 0]])
 
     period = obj.yaw_period_rad if obj.yaw_period_rad > 0 else 2 * math.pi
     if start is not None:
@@ -197,12 +225,13 @@ def fit_resting_pose(points: np.ndarray, obj: ObjectConfig, table_height_m: floa
         every = points
         points = points[:: max(1, len(points) // START_POINTS)]
         for x0 in starts:
-            sol = least_squares(residuals, x0, loss="soft_l1", f_scale=0.002, x_scale=[0.01, 0.01, 0.1])
+            sol = least_squares(residuals, x0, jac=jacobian, loss="soft_l1", f_scale=0.002,
+                                x_scale=[0.01, 0.01, 0.1])
             if best is None or sol.cost < best.cost:
                 best = sol
         assert best is not None
         starts, points = [best.x], every
-    sol = least_squares(residuals, starts[0], loss="soft_l1", f_scale=0.002, x_scale=[0.01, 0.01, 0.1])
+    sol = least_squares(residuals, starts[0], jac=jacobian, loss="soft_l1", f_scale=0.002, x_scale=[0.01, 0.01, 0.1])
     x = sol.x
     r = residuals(x)
     yaw = float(np.mod(x[2], period)) if obj.yaw_period_rad > 0 else 0.0

@@ -60,6 +60,29 @@ HAND_RADIUS_M = 0.15
 SEARCH_MARGIN_M = 0.03
 
 
+def _masked_median(values: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """Each row's median over its entries where ``ok``: the value ``np.median(values[i][ok[i]])`` gives, for
+    all rows (k, n) at once (every row needs at least one ``ok`` entry).
+
+    A row's missing entries are filled half with -inf and half with +inf (one -inf more where their number is
+    odd), so that the middle of the filled row is the middle of its valid entries; one ``np.median`` along the
+    rows then does the work of ``k`` calls.
+    """
+    bad = ~ok
+    nbad = bad.sum(axis=1)
+    low = bad & (np.cumsum(bad, axis=1) <= (nbad // 2)[:, None])
+    filled = np.where(ok, values, np.where(low, -np.inf, np.inf))
+    odd = nbad % 2 == 1
+    if not np.any(odd):
+        return np.median(filled, axis=1)
+    out = np.empty(len(values))
+    if not np.all(odd):
+        out[~odd] = np.median(filled[~odd], axis=1)
+    extra = np.full((int(odd.sum()), 1), -np.inf)
+    out[odd] = np.median(np.concatenate([filled[odd], extra], axis=1), axis=1)
+    return out
+
+
 def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray, config: CameraConfig,
                     max_shift_px: int = 10) -> tuple[np.ndarray, np.ndarray]:
     """How far the scene the sensor sees is displaced from the robot's model of it, around ``region``.
@@ -70,6 +93,11 @@ def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray,
     a pixel on the bilinearly interpolated measured image. The silhouette's edges against the
     background fix the shift; its surfaces fix the depth. Locally, that is a displacement of the points by
     ``R_world_camera @ (du z / f, dv z / f, dz)`` (z the region's median depth, f the focal length).
+
+    Every shift of a stage is evaluated (all whole pixels of the range; then 3 x 3 half and 11 x 11 tenth
+    pixels around the best so far), the costs of a stage's shifts together (:func:`_masked_median`). (A coarser
+    whole-pixel search, every other shift and then a descent, was tried: the cost can have two minima a pixel or
+    two apart, and it found the other one.)
 
     Args:
         measured: The sensor's depth image (H, W) (m; 0 where missing).
@@ -90,34 +118,47 @@ def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray,
                             "object against it)")
     h, w = measured.shape
     z_model = model[v, u]
+    # the measured image in a frame of missing pixels wider than any shift: no index leaves it
+    pad = max_shift_px + 2
+    framed = np.zeros((h + 2 * pad, w + 2 * pad))
+    framed[pad:pad + h, pad:pad + w] = measured
+    flat, row = framed.ravel(), w + 2 * pad
+    uu, vv, zm = u, v, z_model
 
-    def residuals_at(du: float, dv: float) -> tuple[np.ndarray, np.ndarray]:
-        uu, vv = u + du, v + dv
-        inside = (uu >= 0) & (uu <= w - 1) & (vv >= 0) & (vv <= h - 1)
-        if float(du).is_integer() and float(dv).is_integer():
-            z = measured[np.clip(vv, 0, h - 1).astype(int), np.clip(uu, 0, w - 1).astype(int)]
+    def costs(shifts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The median absolute residual (m) and the median residual dz (m) at each shift (k, 2) (du, dv) (px);
+        inf where fewer than half of the region's pixels are valid."""
+        du, dv = shifts[:, :1], shifts[:, 1:]
+        if np.all(shifts == np.round(shifts)):
+            z = flat[(vv + pad) * row + uu + pad + (dv * row + du).astype(int)]
         else:
-            z = ndimage.map_coordinates(measured, [np.clip(vv, 0, h - 1), np.clip(uu, 0, w - 1)], order=1)
-        ok = inside & (z > 0.0)
-        return z - z_model, ok
+            z = ndimage.map_coordinates(framed, [vv + pad + dv, uu + pad + du], order=1)
+            # between the image's last pixel and the frame: outside, as beyond it
+            z[(uu + du < 0) | (uu + du > w - 1) | (vv + dv < 0) | (vv + dv > h - 1)] = 0.0
+        ok = z > 0.0
+        r = z - zm
+        cost, dz = np.full(len(shifts), np.inf), np.zeros(len(shifts))
+        enough = ok.sum(axis=1) >= len(zm) // 2
+        if np.any(enough):
+            r, ok = r[enough], ok[enough]
+            dz[enough] = _masked_median(r, ok)
+            cost[enough] = _masked_median(np.abs(r - dz[enough][:, None]), ok)
+        return cost, dz
 
-    def cost(du: float, dv: float) -> tuple[float, float]:
-        r, ok = residuals_at(du, dv)
-        if ok.sum() < len(v) // 2:
-            return np.inf, 0.0
-        dz = float(np.median(r[ok]))
-        return float(np.median(np.abs(r[ok] - dz))), dz
+    def grid(centre: np.ndarray, step: float, span: int) -> np.ndarray:
+        k = step * np.arange(-span, span + 1)
+        dv, du = np.meshgrid(centre[1] + k, centre[0] + k, indexing="ij")
+        return np.column_stack([du.ravel(), dv.ravel()])
 
-    # coarse to fine: whole pixels over the search range, then half and tenth pixels around the best
-    best = (np.inf, 0.0, 0.0, 0.0)
+    # every whole pixel of the range, then half and tenth pixels around the best
+    best = (np.inf, 0.0, np.zeros(2))
     for step, span in ((1.0, max_shift_px), (0.5, 1), (0.1, 5)):
-        u0, v0 = best[1], best[2]
-        for dv in v0 + step * np.arange(-span, span + 1):
-            for du in u0 + step * np.arange(-span, span + 1):
-                c, dz = cost(float(du), float(dv))
-                if c < best[0]:
-                    best = (c, float(du), float(dv), dz)
-    _, du, dv, dz = best
+        shifts = grid(best[2], step, span)
+        cs, dzs = costs(shifts)
+        i = int(np.argmin(cs))
+        if cs[i] < best[0]:
+            best = (float(cs[i]), float(dzs[i]), shifts[i])
+    _, dz, (du, dv) = best
     z = float(np.median(z_model))
     f = config.focal_px
     return config.R_world_camera @ np.array([du * z / f, dv * z / f, dz]), np.array([du, dv])
@@ -169,11 +210,16 @@ class TableCamera:
         """Release the OpenGL context."""
         self.camera.close()
 
-    def _scene(self, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-        """The exact depth image of the scene now, seen from where the camera really is, and the pixels of what
-        the robot knows is there (renders: the frames of one look share them; each has its own noise,
-        :meth:`_frame`)."""
-        return self.camera.render_depth(d, seen_from=self.real), self.camera.render_mask(d, self.known)
+    def _scene(self, d: mujoco.MjData, own: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """The exact depth image of the scene now, seen from where the camera really is, the pixels of what
+        the robot knows is there, and (``own``) the robot's model of the scene: its depth rendered where it
+        believes the camera is, from the same render as those pixels (renders: the frames of one look share
+        them; each has its own noise, :meth:`_frame`)."""
+        exact = self.camera.render_depth(d, seen_from=self.real)
+        if own:
+            model, known = self.camera.render_view(d, self.known)
+            return exact, known, model
+        return exact, self.camera.render_mask(d, self.known), None
 
     def _frame(self, exact: np.ndarray) -> np.ndarray:
         """One depth frame as the sensor reports it (its noise drawn now)."""
@@ -209,10 +255,10 @@ class TableCamera:
         centre = T_world_object.act(self._centre_local)
         return points[np.linalg.norm(points - centre, axis=1) < self._radius_m]
 
-    def _own_hand(self, d: mujoco.MjData, known: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The robot's model of itself rendered where it believes the camera is (H, W) (m), and its own pixels
-        near the tcp (H, W) (bool): what :meth:`_hand_offset` matches."""
-        own = self.camera.render_depth(d, hide_object=True)
+    def _own_hand(self, d: mujoco.MjData, known: np.ndarray, own: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The robot's model of the scene rendered where it believes the camera is (H, W) (m) (:meth:`_scene`:
+        at the pixels of its own links, their depth), and its own pixels near the tcp (H, W) (bool): what
+        :meth:`_hand_offset` matches."""
         tcp = d.site_xpos[self.robot.handles.tcp_site]
         own_px = known & (own > 0.0)
         hand = np.zeros(known.shape, dtype=bool)  # only those pixels are back-projected
@@ -247,9 +293,10 @@ class TableCamera:
         t0 = time.perf_counter()
         try:
             window = None if near is None else self._window(near)
-            exact, known = self._scene(d)
+            exact, known, model = self._scene(d, own=from_hand)
             if from_hand:
-                own, hand = self._own_hand(d, known)
+                assert model is not None
+                own, hand = self._own_hand(d, known, model)
             else:
                 offset, mask = np.zeros(3), ndimage.binary_dilation(known, iterations=MASK_MARGIN_PX)
             clouds = []
@@ -293,9 +340,10 @@ class TableCamera:
         """
         t0 = time.perf_counter()
         try:
-            exact, known = self._scene(d)
+            exact, known, model = self._scene(d, own=True)
+            assert model is not None
             depth = self._frame(exact)
-            offset, mask = self._hand_offset(depth, known, *self._own_hand(d, known))
+            offset, mask = self._hand_offset(depth, known, *self._own_hand(d, known, model))
             points = self._near(point_cloud(depth, self.config, ~mask & self._window(guess)) - offset, guess)
             points = points[points[:, 2] > self.robot.scene.table_height_m + self.clearance_m]
             est = fit_held_pose(points, self.obj, guess, self.rng, model=self.model, free_axes=free_axes)
