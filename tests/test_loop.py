@@ -154,6 +154,24 @@ def test_encoder_readings_are_counts_plus_noise(robot: Robot) -> None:
     assert np.abs(counts - np.round(counts)).max() < 1e-6
 
 
+def test_encoder_noise_is_one_draw_of_six_per_tick_across_motions(robot: Robot) -> None:
+    """The loop draws its encoders' noise in chunks; across two motions of one loop, the noise of each tick is the
+    generator's next six normal draws, none skipped or reordered (the chunk ends inside the second motion)."""
+    std = 0.5 * RES
+    loop = ControlLoop(LoopConfig(control_period_s=0.002, encoder_resolution_rad=RES, encoder_noise_std_rad=std),
+                       np.random.default_rng(11))
+    d = _data_at(robot, robot.home_q)
+    noises = []
+    for duration_s in (0.3, 0.4):  # 150 + 200 ticks: past the first chunk of draws
+        tape = _Tape(robot, d)
+        rec = control.hold(robot, d, robot.home_q, duration_s, ControlConfig(), loop=loop, hook=tape)
+        q_true = np.array(tape.q)[0: rec.steps + 1: 2]
+        noises.append(rec.q - np.round(q_true / RES) * RES)
+    noise = np.vstack(noises)
+    expected = np.random.default_rng(11).normal(0.0, std, (len(noise), 6))
+    print(f"\n{len(noise)} ticks, largest difference from sequential draws {np.abs(noise - expected).max():.2e} rad")
+    assert np.abs(noise - expected).max() < 1e-12  # the same draws (the reading's rounding: ~1e-16 rad)
+
 def test_filtered_velocity_tracks_the_true_velocity(robot: Robot) -> None:
     """A smooth motion (a TOPP-RA trajectory at the UR5e's limits), 500 Hz, 18-bit encoders with noise, 100 Hz
     filter: the estimate the law receives follows MuJoCo's velocity within its expected lag."""
