@@ -640,16 +640,16 @@ class _Segments:
     Lazy checking rests on it: a candidate segment is first checked only coarsely (:meth:`check` with
     ``coarse=True``: its points up to a spacing of ``coarse_gap`` steps), and the segments of the final path are
     then completed (:meth:`complete`). A segment checked coarsely and later dropped cost only its coarse points; a
-    segment completed later is never checked twice at a point. A piece of a segment (:meth:`set_piece`) is valid at
-    the resolution if its segment is, and found blocked, blocks its segment too. Keys are the two ends' bytes, in
-    order.
+    segment completed later is never checked twice at a point. A piece of a segment (:meth:`set_piece`, the ends of a
+    shortcut) found blocked blocks its segment too; it is valid at the resolution if its segment is, unless
+    ``exact_pieces`` (RRT-Connect's: then it is checked on its own points). Keys are the two ends' bytes, in order.
     """
 
     def __init__(self, checker: ValidityChecker, resolution_rad: float, coarse_gap: int,
                  exact_pieces: bool = False) -> None:
         self.checker, self.res, self.gap, self.exact_pieces = checker, resolution_rad, coarse_gap, exact_pieces
         # per segment: interior points found valid, in coarse-to-fine order; or _FULL (all of them, or a piece of
-        # such a segment); or _BLOCKED (an interior point found invalid)
+        # such a segment unless exact_pieces); or _BLOCKED (an interior point found invalid)
         self.state: dict[bytes, int] = {}
         self.parent: dict[bytes, bytes] = {}  # a piece of a segment (shortcut ends): the segment it lies on
         # the index of the first invalid configuration of a batch, or -1 (:func:`_first_invalid`, resolved once)
