@@ -123,6 +123,7 @@ class CollisionChecker:
         self._m = family.model
         shared = self._shared = _shared_data(robot.world_scene, robot.scene.object, threading.get_ident())
         self._d = shared.d
+        self._arm_qpos = shared.d.qpos[family.arm]  # (a view: the arm's joints in the shared data)
         self._token = next(_TOKENS)  # who this checker is to the shared data
         self._handles, self._held_body, self._arm = family.handles, family.held_body, family.arm
         self._contype, self._conaffinity = family.contype, family.conaffinity
@@ -259,11 +260,11 @@ class CollisionChecker:
     def first_invalid(self, qs: np.ndarray) -> int:
         """Index of the first invalid configuration of a batch (N, 6), in order, or -1 if all are valid; stops
         there."""
-        qs = np.atleast_2d(qs)
+        if qs.ndim != 2:
+            qs = np.atleast_2d(qs)
         if self._shared.owner != self._token:
             self._load()
-        m, d, arm, kinematics, collision = self._m, self._d, self._d.qpos[self._arm], mujoco.mj_kinematics, \
-            mujoco.mj_collision
+        m, d, arm, kinematics, collision = self._m, self._d, self._arm_qpos, mujoco.mj_kinematics, mujoco.mj_collision
         for i, q in enumerate(qs):
             arm[:] = q
             kinematics(m, d)

@@ -9,18 +9,22 @@ vectorised; edge checks go through the checker's batch call, coarse to fine (bis
 
 :func:`plan` tries the straight segment, then (default, ``PlannerConfig.search = "connect"``) grows two trees, one
 from each end, the RRT-Connect way, checking only their nodes; where they meet, the path through them is pulled
-taut (:func:`pull`), which checks just the segments it keeps and cuts an invalid edge out of its tree (the search
-then goes on). Random shortcuts and a greedy waypoint removal then shorten it (:func:`shortcut`), lazily: each
-candidate is checked coarsely (every :data:`_COARSE_GAP` steps of the resolution), and only the segments of the
-result are then checked at the resolution (a failure there is remembered and the shortcutting redone). Collision
-checks are the cost: a valid segment costs its full length in checks, a blocked one usually a few, so the checks
-are spent on the segments of the returned paths and on cheap rejections. ``search = "rrtstar"`` (or
-``stop_at_first_solution = False``, the anytime mode) grows an RRT* tree from the start instead.
+taut (as :func:`pull` does; a path edge found invalid is cut out of its tree and the search goes on), then random
+shortcuts and a greedy waypoint removal shorten it (as :func:`shortcut` does). All of it is lazy: each candidate
+segment, of the pull and of the shortcuts, is checked coarsely (every :data:`_COARSE_GAP` steps of the
+resolution), and only the segments of the result are then checked at the resolution, each on its own points (a
+failure there is remembered, also against the segment it is a piece of, and the pull and shortcutting redone).
+Collision checks are the cost: a valid segment costs its full length in checks, a blocked one usually a few, so
+the checks are spent on the segments of the returned path and on cheap rejections, not on the corners of the
+pulled path that the shortcuts cut away. That pulled path is therefore not checked at the resolution, and
+RRT-Connect returns its result as ``path_raw`` too. ``search = "rrtstar"`` (or ``stop_at_first_solution = False``,
+the anytime mode) grows an RRT* tree from the start instead.
 
 Every returned path is valid at the stated resolution: along each of its segments, configurations checked valid
-lie at most ``edge_resolution_rad`` apart (both ends included): a segment the planner checked, or a piece of one
-(shortcuts join points inside checked segments). When ``edge_resolution_rad`` is coarser than
-``verify_resolution_rad``, the path is also re-checked at the latter (and planned again at it if that fails).
+lie at most ``edge_resolution_rad`` apart (both ends included). RRT-Connect's path is checked on exactly the
+configurations that :func:`path_valid` visits; RRT*'s tree path too, and its shortcut path on a segment the planner
+checked or a piece of one (shortcuts join points inside checked segments). When ``edge_resolution_rad`` is coarser
+than ``verify_resolution_rad``, the path is also re-checked at the latter (and planned again at it if that fails).
 
 Determinism: a ``numpy.random.Generator`` seeded with ``PlannerConfig.seed`` is the only randomness,
 drawn in fixed-size chunks, so equal inputs give bit-identical results whenever the search is ended
@@ -189,7 +193,8 @@ class PlanResult:
     """A planned joint-space path (arrays are read-only).
 
     Attributes:
-        path_raw: Tree path (K, n) from start to goal (rad).
+        path_raw: Tree path (K, n) from start to goal (rad): RRT*'s; with RRT-Connect (``search = "connect"``),
+            whose pulled path is only checked lazily, the shortcut path (as ``path``).
         path: Shortcut path (L, n) from start to goal (rad), L <= K in practice.
         cost_raw_rad: Sum of L2 segment lengths of ``path_raw`` (rad).
         cost_rad: Sum of L2 segment lengths of ``path`` (rad), <= ``cost_raw_rad``.
@@ -491,6 +496,7 @@ class _Tree:
     def __init__(self, root: np.ndarray, capacity: int) -> None:
         self.nodes = np.empty((capacity, root.size))
         self.nodes[0] = root
+        self.ones = np.ones(root.size)
         self.parent: list[int] = [-1]
         self.children: list[list[int]] = [[]]
         self.n = 1
@@ -498,7 +504,8 @@ class _Tree:
     def nearest(self, q: np.ndarray) -> tuple[int, float]:
         """(index, L2 distance) of the live node nearest to q (n,)."""
         diff = self.nodes[: self.n] - q
-        d2 = np.einsum("ij,ij->i", diff, diff)
+        diff *= diff
+        d2 = diff @ self.ones  # (faster than einsum for the few nodes of a lazy search)
         i = int(d2.argmin())
         return i, math.sqrt(d2[i])
 
@@ -542,22 +549,22 @@ def _rrt_connect(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray, 
     after step, towards the new node (Kuffner & LaValle 2000), the two trees taking turns. Only the new nodes
     are checked while the trees grow. When the trees meet, the midpoints of the path's edges not looked at yet are
     checked first (all together); then :func:`_pull_and_shortcut` makes the path taut and shortcuts it, checking
-    the candidate segments coarsely and those it keeps at ``edge_resolution_rad``. An edge found invalid is cut
-    out of its tree with everything below it, and the search goes on (as LazyRRT / LazyPRM do). What is known
+    the candidate segments coarsely and those of the result at ``edge_resolution_rad``. An edge found invalid is
+    cut out of its tree with everything below it, and the search goes on (as LazyRRT / LazyPRM do). What is known
     about a segment is kept for the next meeting (:class:`_Segments`).
 
     Returns:
-        (taut path (K, n), shortcut path (L, n), iterations used, nodes of both trees, when the trees met for the
-        last time (``time.perf_counter``)).
+        (shortcut path (L, n) twice (the pulled path is not checked at the resolution), iterations used, nodes of
+        both trees, when the trees met for the last time (``time.perf_counter``)).
     """
     d = start.size
     lo, hi = sampling_bounds(start, goal, lo, hi, cfg)
     span = hi - lo
     trees = (_Tree(start, 256), _Tree(goal, 256))
-    step, res = cfg.step_size_rad, cfg.edge_resolution_rad
+    step, res, budget = cfg.step_size_rad, cfg.edge_resolution_rad, cfg.time_budget_s
     samples = np.empty((0, d))
     used = 0
-    segs = _Segments(checker, res, _COARSE_GAP)
+    segs = _Segments(checker, res, _COARSE_GAP, exact_pieces=True)
     draws = np.sort(rng.random((cfg.shortcut_iterations, 2)), axis=1)  # the shortcuts', drawn before the samples
 
     def extend(tree: _Tree, i: int, target: np.ndarray, dist: float) -> tuple[int, bool]:
@@ -565,7 +572,8 @@ def _rrt_connect(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray, 
         if dist <= step:
             q_new, reached = target, True  # (add copies it into the tree)
         else:
-            q_new, reached = tree.nodes[i] + (target - tree.nodes[i]) * (step / dist), False
+            base = tree.nodes[i]
+            q_new, reached = base + (target - base) * (step / dist), False
         if not checker.is_valid(q_new):
             return -1, False
         return tree.add(q_new, i), reached
@@ -574,7 +582,7 @@ def _rrt_connect(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray, 
         k = it % _CHUNK
         if k == 0:
             samples = lo + span * rng.random((_CHUNK, d))
-        if time.perf_counter() - t0 > cfg.time_budget_s:
+        if time.perf_counter() - t0 > budget:
             break
         used = it + 1
         grow, other = trees[it % 2], trees[1 - it % 2]
@@ -587,11 +595,12 @@ def _rrt_connect(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray, 
         target = grow.nodes[new]
         j, dist = other.nearest(target)
         reached = dist < _EPS
+        target_list = target.tolist()  # (math.dist is faster on lists)
         while not reached:
             j_new, reached = extend(other, j, target, dist)
             if j_new < 0:
                 break
-            j, dist = j_new, math.dist(target, other.nodes[j_new])
+            j, dist = j_new, math.dist(target_list, other.nodes[j_new].tolist())
         if not reached:
             continue
         # The trees meet at target. Pull the path through them taut and shortcut it, lazily (the candidate segments
@@ -616,7 +625,7 @@ def _rrt_connect(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray, 
             continue
         logger.debug("RRT-Connect: path at iteration %d, %d -> %d -> %d waypoints, trees of %d + %d nodes", used,
                      len(path), len(taut), len(short), trees[0].n, trees[1].n)
-        return taut, short, used, trees[0].n + trees[1].n, t_met
+        return short, short, used, trees[0].n + trees[1].n, t_met
     raise SearchExhausted(
         f"RRT-Connect found no path after {used} of {cfg.iterations} iterations in "
         f"{time.perf_counter() - t0:.3f} s (budget {cfg.time_budget_s:g} s), trees of {trees[0].n} + "
@@ -631,14 +640,18 @@ class _Segments:
     Lazy checking rests on it: a candidate segment is first checked only coarsely (:meth:`check` with
     ``coarse=True``: its points up to a spacing of ``coarse_gap`` steps), and the segments of the final path are
     then completed (:meth:`complete`). A segment checked coarsely and later dropped cost only its coarse points; a
-    segment completed later is never checked twice at a point. Keys are the two ends' bytes, in order.
+    segment completed later is never checked twice at a point. A piece of a segment (:meth:`set_piece`, the ends of a
+    shortcut) found blocked blocks its segment too; it is valid at the resolution if its segment is, unless
+    ``exact_pieces`` (RRT-Connect's: then it is checked on its own points). Keys are the two ends' bytes, in order.
     """
 
-    def __init__(self, checker: ValidityChecker, resolution_rad: float, coarse_gap: int) -> None:
-        self.checker, self.res, self.gap = checker, resolution_rad, coarse_gap
-        self.done: dict[bytes, int] = {}  # interior points found valid, in coarse-to-fine order
-        self.full: set[bytes] = set()  # every interior point valid (or a piece of such a segment)
-        self.blocked: set[bytes] = set()  # an interior point found invalid
+    def __init__(self, checker: ValidityChecker, resolution_rad: float, coarse_gap: int,
+                 exact_pieces: bool = False) -> None:
+        self.checker, self.res, self.gap, self.exact_pieces = checker, resolution_rad, coarse_gap, exact_pieces
+        # per segment: interior points found valid, in coarse-to-fine order; or _FULL (all of them, or a piece of
+        # such a segment unless exact_pieces); or _BLOCKED (an interior point found invalid)
+        self.state: dict[bytes, int] = {}
+        self.parent: dict[bytes, bytes] = {}  # a piece of a segment (shortcut ends): the segment it lies on
         # the index of the first invalid configuration of a batch, or -1 (:func:`_first_invalid`, resolved once)
         first = getattr(checker, "first_invalid", None)
         self.first_invalid = first if first is not None else functools.partial(_first_invalid, checker)
@@ -647,31 +660,43 @@ class _Segments:
         """Whether the segment qa (n,) -> qb (n,), whose ends are valid, passes: all its interior points, or with
         ``coarse`` those up to the coarse spacing; only the points not checked before are checked."""
         key = qa.tobytes() + qb.tobytes()
-        if key in self.full:
+        done = self.state.get(key, 0)
+        if done == _FULL:
             return True
-        if key in self.blocked:
+        if done < 0:
             return False
         delta = qb - qa
         steps = math.ceil(max(map(abs, delta.tolist())) / self.res)
         total = steps - 1
-        want = min(total, _coarse_count(steps, self.gap)) if coarse else total
-        done = self.done.get(key, 0)
+        want = _coarse_count(steps, self.gap) if coarse else total  # (_coarse_count <= total)
         if done < want:
             if self.first_invalid(qa + _fractions(steps)[2 + done: 2 + want] * delta) >= 0:
-                self.blocked.add(key)
+                self.block(key)
                 return False
-            self.done[key] = done = want
+            done = want
         if done >= total:
-            self.full.add(key)
+            self.state[key] = _FULL
+        elif done:
+            self.state[key] = done
         return True
+
+    def block(self, key: bytes) -> None:
+        """Record the segment ``key`` as blocked, and the segments it is a piece of (they hold its invalid point), up
+        to one checked valid at the resolution (the point lies between two of its checked ones)."""
+        state, parent = self.state, self.parent
+        while key is not None and state.get(key, 0) not in (_BLOCKED, _FULL):
+            state[key] = _BLOCKED
+            key = parent.get(key)
 
     def first_invalid_midpoint(self, path: np.ndarray) -> int:
         """Check the first interior point (the midpoint, as :func:`_fractions` orders them: step ``steps // 2`` of
         ``steps``) of every edge of path (K, n) not looked at yet, all in one batch, stopping at the first invalid
         one; record the others. Returns the index of the edge found invalid (then recorded as blocked), or -1."""
-        keys = [path[e].tobytes() + path[e + 1].tobytes() for e in range(len(path) - 1)]
-        fresh = [e for e, key in enumerate(keys)
-                 if key not in self.done and key not in self.full and key not in self.blocked]
+        raw = np.ascontiguousarray(path).tobytes()
+        width = path.itemsize * path.shape[1]
+        keys = [raw[e * width: (e + 2) * width] for e in range(len(path) - 1)]  # (path is C-contiguous)
+        state = self.state
+        fresh = [e for e, key in enumerate(keys) if key not in state]
         if not fresh:
             return -1
         qa = path[fresh]
@@ -683,13 +708,10 @@ class _Segments:
             bad = self.first_invalid(qa[inner] + half[:, None] * delta[inner])
             if bad >= 0:
                 e = fresh[int(inner[bad])]
-                self.blocked.add(keys[e])
+                state[keys[e]] = _BLOCKED
                 return e
         for e, n in zip(fresh, steps.tolist(), strict=True):
-            if n <= 2:  # the midpoint was the whole interior (or there is none)
-                self.full.add(keys[e])
-            else:
-                self.done[keys[e]] = 1
+            state[keys[e]] = _FULL if n <= 2 else 1  # (the midpoint was the whole interior, or there is none)
         return -1
 
     def complete(self, qa: np.ndarray, qb: np.ndarray) -> bool:
@@ -698,14 +720,32 @@ class _Segments:
 
     def is_full(self, qa: np.ndarray, qb: np.ndarray) -> bool:
         """Whether every interior point of qa -> qb is known valid."""
-        return qa.tobytes() + qb.tobytes() in self.full
+        return self.state.get(qa.tobytes() + qb.tobytes()) == _FULL
 
     def set_full(self, qa: np.ndarray, qb: np.ndarray) -> None:
         """Record qa -> qb as valid at the resolution (an edge checked elsewhere, or a piece of a valid segment)."""
-        self.full.add(qa.tobytes() + qb.tobytes())
+        self.state[qa.tobytes() + qb.tobytes()] = _FULL
+
+    def set_piece(self, pa: np.ndarray, pb: np.ndarray, qa: np.ndarray, qb: np.ndarray) -> None:
+        """Record qa -> qb as a piece of the segment pa -> pb: found blocked, it blocks that one too (unless that one
+        was checked at the resolution); valid at the resolution if that one is, unless ``exact_pieces`` (then a piece
+        is checked on its own points, the configurations a re-check of the path at the resolution visits)."""
+        key, whole = qa.tobytes() + qb.tobytes(), pa.tobytes() + pb.tobytes()
+        if key == whole:
+            return
+        if not self.exact_pieces and self.state.get(whole) == _FULL:
+            self.state[key] = _FULL
+        else:
+            self.parent[key] = whole
 
 
-_LAZY_ATTEMPTS = 2  # lazy pulls and shortcuts whose final path failed its completion before one that checks fully
+_FULL = 1 << 62  # _Segments.state of a segment whose interior points are all known valid
+_BLOCKED = -1  # ... and of one found blocked
+
+
+# lazy pulls and shortcuts whose result failed its completion before one that checks fully (5: on the obstacle
+# transfer and the shelf, cage, bins and slot problems, 20 seeded queries each, as few or fewer checks than 2 or 3)
+_LAZY_ATTEMPTS = 5
 _COARSE_GAP = 8  # a candidate segment is first checked every 8 steps of the edge resolution (0.08 rad by default)
 
 
@@ -744,18 +784,20 @@ def pull(checker: ValidityChecker, path: np.ndarray, resolution_rad: float, know
 
 
 def _pull(segs: _Segments, path: np.ndarray,
-          blocked: set[tuple[int, int]] | frozenset[tuple[int, int]] = frozenset()) -> tuple[np.ndarray | None, int]:
+          blocked: set[tuple[int, int]] | frozenset[tuple[int, int]] = frozenset(),
+          coarse: bool = False) -> tuple[np.ndarray | None, int]:
     """:func:`pull` on a segment record: from each kept waypoint i, the later waypoints are looked at coarsely,
     farthest first, and the farthest that passes is then checked at the resolution; if that fails (an obstacle
-    thinner than the coarse spacing), waypoint i goes on in :func:`pull`'s order (halving distances). Returns (the
-    taut path or None, the index of the edge of ``path`` found blocked or -1)."""
+    thinner than the coarse spacing), waypoint i goes on in :func:`pull`'s order (halving distances). With
+    ``coarse``, the farthest that passes coarsely is kept as it is (its check is completed later, if the result
+    keeps it). Returns (the taut path or None, the index of the edge of ``path`` found blocked or -1)."""
     k_last = len(path) - 1
     out, i = [0], 0
     while i < k_last:
         j = -1
         for cand in range(k_last, i, -1):  # farthest first, coarsely: a blocked candidate costs a few checks
             if (i, cand) not in blocked and segs.check(path[i], path[cand], True):
-                if segs.complete(path[i], path[cand]):
+                if coarse or segs.complete(path[i], path[cand]):
                     j = cand
                 break
         gap = k_last - i
@@ -810,10 +852,8 @@ def _shortcut_pass(segs: _Segments, path: np.ndarray, config: PlannerConfig, dra
         a, b = pts[taken]
         # A piece of a segment checked at the resolution is checked at it too: any point on it lies as close to a
         # checked configuration as before.
-        if segs.is_full(path[i], path[i + 1]):
-            segs.set_full(path[i], a)
-        if segs.is_full(path[j], path[j + 1]):
-            segs.set_full(b, path[j + 1])
+        segs.set_piece(path[i], path[i + 1], path[i], a)
+        segs.set_piece(path[j], path[j + 1], b, path[j + 1])
         pieces = [path[: i + 1]]
         if a.tobytes() != path[i].tobytes():  # (a draw exactly on a waypoint: no zero-length segment)
             pieces.append(a[None])
@@ -822,13 +862,16 @@ def _shortcut_pass(segs: _Segments, path: np.ndarray, config: PlannerConfig, dra
         pieces.append(path[j + 1:])
         path = np.concatenate(pieces)
     removed = True
+    rows = path.tolist()  # (math.dist is faster on lists)
     while removed:
         removed = False
         k = 1
-        while k < len(path) - 1:
-            qa, qk, qb = path[k - 1], path[k], path[k + 1]
-            if math.dist(qa, qb) <= math.dist(qa, qk) + math.dist(qk, qb) and segs.check(qa, qb, coarse):
+        while k < len(rows) - 1:
+            ra, rk, rb = rows[k - 1], rows[k], rows[k + 1]
+            if math.dist(ra, rb) <= math.dist(ra, rk) + math.dist(rk, rb) and segs.check(path[k - 1], path[k + 1],
+                                                                                       coarse):
                 path = np.delete(path, k, axis=0)  # (waypoints are valid)
+                del rows[k]
                 removed = True
                 continue
             k += 1
@@ -844,32 +887,36 @@ def _completed(segs: _Segments, path: np.ndarray) -> bool:
 def _pull_and_shortcut(segs: _Segments, path: np.ndarray, config: PlannerConfig, draws: np.ndarray,
                        blocked: set[tuple[int, int]] | frozenset[tuple[int, int]] = frozenset(),
                        pull_first: bool = True) -> tuple[np.ndarray | None, np.ndarray | None, int]:
-    """Pull the path (K, n) taut (if ``pull_first``; :func:`pull`, every segment it keeps checked at the resolution),
-    then shortcut it lazily: every candidate shortcut is checked coarsely, and only the segments of the result are
-    then checked at the resolution. When one of those fails, it is recorded as blocked and the shortcutting is
-    redone (what passed before costs nothing again); after :data:`_LAZY_ATTEMPTS` such failures, once more with
-    every candidate checked at the resolution as it is tried.
+    """Pull the path (K, n) taut (if ``pull_first``; :func:`_pull`), then shortcut it, lazily: every candidate segment
+    (of the pull and of the shortcuts) is checked coarsely, and only the segments of the result are then checked at
+    the resolution. When one of those fails, it is recorded as blocked (with the segment it is a piece of) and the
+    pull and the shortcutting are redone (what passed before costs nothing again); after :data:`_LAZY_ATTEMPTS` such
+    failures, once more with every candidate checked at the resolution as it is tried.
 
-    (A candidate checked fully costs its whole length; most candidates that pass are superseded by a later
-    shortcut, so checking them only coarsely until the end saves most of their checks.)
+    (A candidate checked fully costs its whole length; most candidates that pass, and the corners of the pulled path,
+    are cut away by a later shortcut, so checking them only coarsely until the end saves most of their checks.)
 
     Returns:
         (the taut path, the shortcut path, -1), or (None, None, the index of an edge of ``path`` found blocked)
-        when even the edges of ``path`` cannot join its waypoints.
+        when even the edges of ``path`` cannot join its waypoints. The shortcut path's segments are all checked at
+        the resolution; the taut path's only where they were needed (all of them after the last attempt).
     """
     taut = path
-    if pull_first:
-        pulled, bad = _pull(segs, path, blocked)
-        if pulled is None:
-            return None, None, bad
-        taut = pulled
     for attempt in range(_LAZY_ATTEMPTS + 1):
         coarse = attempt < _LAZY_ATTEMPTS
+        if pull_first:
+            pulled, bad = _pull(segs, path, blocked, coarse)
+            if pulled is None:
+                return None, None, bad
+            taut = pulled
         short = _shortcut_pass(segs, taut, config, draws, coarse)
-        if not coarse or _completed(segs, short):
+        if _completed(segs, short):
             return taut, short, -1
+        if not coarse:  # a piece of a segment checked at the resolution failed on its own points: keep the taut path
+            logger.debug("shortcut: a piece of a checked segment failed at the resolution; the taut path is kept")
+            return taut, taut, -1
         logger.debug("lazy shortcut: a segment of the result failed at the resolution (attempt %d)", attempt + 1)
-    raise AssertionError("unreachable: the last attempt checks every segment at the resolution")
+    raise AssertionError("unreachable: the last attempt returns")
 
 
 def shortcut(checker: ValidityChecker, path: np.ndarray, config: PlannerConfig,
@@ -929,7 +976,8 @@ def plan(checker: ValidityChecker, q_start: np.ndarray, q_goal: np.ndarray, lowe
         logger.info("plan: solved by retry %d (seed %d)", len(failures), attempt.seed)
         cfg = attempt
     t1, t2 = t1 - t0, t2 - t0
-    cost_raw, cost = path_cost(raw), path_cost(short)
+    cost = path_cost(short)
+    cost_raw = cost if raw is short else path_cost(raw)
     if cost > cost_raw:  # cannot happen beyond rounding; keep the promise anyway
         short, cost = raw.copy(), cost_raw
     raw.setflags(write=False)
