@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from pickplace.errors import ConfigError
-from pickplace.perception.camera import CameraConfig, DepthCamera, point_cloud, sensor_depth
+from pickplace.perception.camera import CameraConfig, DepthCamera, ImageCrop, point_cloud, sensor_depth
 from pickplace.robot.model import Robot
 
 
@@ -147,3 +147,82 @@ def test_one_render_gives_the_depth_and_the_self_filter(robot: Robot) -> None:
         assert not np.array_equal(depth, camera.render_depth(d, hide_object=True))
     finally:
         camera.close()
+
+
+def _between_neighbours(full: np.ndarray, crop: ImageCrop, values: np.ndarray) -> np.ndarray:
+    """For each pixel of ``crop``, whether ``values`` there lies between the least and the greatest value of the
+    full image at the pixel and its 8 neighbours (to float32 rounding): what the scene moved by a fraction of a
+    pixel gives there."""
+    padded = np.pad(full.astype(float), 1, mode="edge")
+    lo, hi = np.full(values.shape, np.inf), np.full(values.shape, -np.inf)
+    for dv in (0, 1, 2):
+        for du in (0, 1, 2):
+            other = padded[crop.v0 + dv:crop.v0 + dv + crop.height, crop.u0 + du:crop.u0 + du + crop.width]
+            lo, hi = np.minimum(lo, other), np.maximum(hi, other)
+    tol = 1e-6 * np.maximum(1.0, np.abs(values))
+    return (values >= lo - tol) & (values <= hi + tol)
+
+
+@pytest.mark.parametrize("pose", range(3))
+def test_a_crop_renders_the_full_images_pixels(robot: Robot, pose: int) -> None:
+    """A crop's render is the crop of the full render, pixel for pixel (the same rays, not a rescale): depth to
+    float32 rounding and the same self-filter, from the calibrated and from a drawn pose, for several arm
+    configurations and crops (the image's corners, odd sizes). The rasterizer rounds the projected vertices to its
+    sub-pixel grid, and the crop's projection may round them the other way: a pixel whose centre lies on a
+    silhouette's edge may show the other side, a steep surface's depth may differ by its slope times that
+    rounding (microns). Those are rare, and each is what a neighbouring pixel of the full image shows or between."""
+    rng = np.random.default_rng(pose)
+    d = robot.make_data()
+    h = robot.handles
+    d.qpos[h.arm_qpos] = robot.home_q + rng.uniform(-0.3, 0.3, len(h.arm_qpos))
+    mujoco.mj_forward(robot.mj, d)
+    cfg = CameraConfig()
+    real = cfg.drawn(rng)
+    camera = DepthCamera(robot, cfg)
+    own = frozenset(robot.handles.robot_bodies)
+    crops = [ImageCrop(0, 0, 200, 200), ImageCrop(848 - 131, 480 - 77, 131, 77), ImageCrop(300, 150, 257, 190),
+             ImageCrop(int(rng.integers(0, 600)), int(rng.integers(0, 300)), 173, 141), ImageCrop(5, 7, 1, 1)]
+    try:
+        full_real = camera.render_depth(d, seen_from=real)
+        full_depth, full_mask = camera.render_view(d, own)
+        full_known = camera.render_mask(d, own)
+        assert full_mask.sum() > 1000  # the arm is in view
+        for crop in crops:
+            view_depth, view_mask = camera.render_view(d, own, crop=crop)
+            got = {"real": (camera.render_depth(d, seen_from=real, crop=crop), full_real),
+                   "view": (view_depth, full_depth),
+                   "mask": (camera.render_mask(d, own, crop=crop), full_known),
+                   "view mask": (view_mask, full_mask)}
+            for name, (image, full) in got.items():
+                assert image.shape == (crop.height, crop.width), name
+                part = full[crop.slices]
+                same = (image == part) if image.dtype == bool else np.abs(image - part) <= 1e-6 * np.abs(part)
+                assert (~same).sum() <= max(2, 0.002 * same.size), (name, crop, int((~same).sum()))
+                assert np.all(_between_neighbours(full, crop, image)[~same]), (name, crop)
+    finally:
+        camera.close()
+
+
+def test_a_crops_point_cloud_is_the_full_images_at_those_pixels(exact) -> None:
+    depth, _ = exact
+    cfg = CameraConfig()
+    crop = ImageCrop(123, 201, 190, 97)
+    pixels = np.zeros(depth.shape, dtype=bool)
+    pixels[crop.slices] = True
+    pixels[::3] = False  # and a mask
+    np.testing.assert_allclose(point_cloud(depth[crop.slices], cfg, pixels[crop.slices], crop=crop),
+                               point_cloud(depth, cfg, pixels), rtol=0, atol=1e-12)
+    with pytest.raises(ConfigError, match=r"depth_m = \(97, 190\) is invalid"):
+        point_cloud(depth[crop.slices], cfg)
+    with pytest.raises(ConfigError, match=r"crop"):
+        point_cloud(np.ones((10, 10)), cfg, crop=ImageCrop(840, 0, 10, 10))
+
+
+def test_a_crop_around_image_coordinates_is_widened_and_clipped() -> None:
+    cfg = CameraConfig()
+    assert ImageCrop.around(10.2, 20.7, 30.0, 30.5, cfg) == ImageCrop(10, 30, 11, 1)
+    assert ImageCrop.around(10.2, 20.7, 30.0, 30.5, cfg, margin_px=16) == ImageCrop(0, 14, 37, 33)
+    assert ImageCrop.around(-50.0, 900.0, 470.0, 600.0, cfg, margin_px=4) == ImageCrop(0, 466, 848, 14)
+    assert ImageCrop.around(900.0, 950.0, 10.0, 20.0, cfg) == ImageCrop(847, 10, 1, 11)  # outside: one pixel
+    assert ImageCrop(0, 0, 10, 10).union(ImageCrop(20, 5, 3, 30)) == ImageCrop(0, 0, 23, 35)
+    assert ImageCrop(3, 4, 5, 6).slices == (slice(4, 10), slice(3, 8))

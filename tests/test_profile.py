@@ -21,6 +21,7 @@ from pickplace.grasping import configurations
 from pickplace.motion.collision import CollisionChecker
 from pickplace.motion.control import ControlConfig
 from pickplace.motion.loop import LoopConfig
+from pickplace.perception import view
 from pickplace.perception.camera import CameraConfig, DepthCamera, point_cloud, sensor_depth
 from pickplace.perception.view import TableCamera, _masked_median, register_offset
 from pickplace.robot import gripper
@@ -283,3 +284,72 @@ def test_a_robot_compensates_the_payload_it_weighed() -> None:
         assert real.payload_mass_kg(0.15, float("nan")) == 0.15  # nothing weighed: the model's
     finally:
         real.close()
+
+
+@pytest.mark.parametrize("trial", range(2))
+def test_a_look_near_a_known_place_sees_in_its_crop_what_the_full_frame_shows(
+        monkeypatch: pytest.MonkeyPatch, trial: int) -> None:
+    """The looks near a known place render only a crop (the pixels they use, CROP_MARGIN_PX around them): without
+    the sensor's noise, the held object's estimate, a resting object's measured against the hand next to it and
+    its plain re-check are those of the same looks on the full frame (the self-filter's shift, the registration's
+    search and the depth edges stay inside the margin)."""
+    scene = SceneConfig()
+    robot = build(scene)
+    d = robot.make_data()
+    h = robot.handles
+    geo = scene.object.geometry()
+    lo, hi = geo.vertices.min(axis=0), geo.vertices.max(axis=0)
+    R_tcp_object = np.diag([1.0, -1.0, -1.0])
+    config = dataclasses.replace(CameraConfig(), subpixel_px=0.0)  # exact depth, quantized
+    # the same depth images whatever their size: the noise draws must not move the fits' generator on
+    monkeypatch.setattr(view, "sensor_depth", lambda z, c, rng: sensor_depth(z, c, np.random.default_rng(0)))
+    cropped = TableCamera._look
+
+    def full_frame(self: TableCamera, d: mujoco.MjData, near: pin.SE3 | None,
+                   from_hand: bool) -> tuple[None, np.ndarray | None]:
+        crop, window = cropped(self, d, near, from_hand)
+        if crop is None:
+            return None, window
+        assert window is not None and (crop.width, crop.height) != (config.width_px, config.height_px)
+        full = np.zeros((config.height_px, config.width_px), dtype=bool)
+        full[crop.slices] = window
+        return None, full
+
+    def put(T: pin.SE3) -> None:
+        a = h.object_qpos
+        d.qpos[a:a + 3] = T.translation
+        quat = np.empty(4)
+        mujoco.mju_mat2Quat(quat, T.rotation.ravel())
+        d.qpos[a + 3:a + 7] = quat
+
+    estimates = {}
+    for mode in ("crop", "full"):
+        monkeypatch.setattr(TableCamera, "_look", cropped if mode == "crop" else full_frame)
+        rng = np.random.default_rng(trial)
+        camera = TableCamera(robot, config, rng)
+        try:
+            yaw = rng.uniform(-1.0, 1.0)
+            R = np.diag([1.0, -1.0, -1.0]) @ pin.rpy.rpyToMatrix(0.0, 0.0, yaw)
+            # held 0.12 m over the goal, 4 mm off the grasp model along the pads
+            T_tcp = pin.SE3(R, np.array([*scene.goal_pos_m[:2], scene.goal_pos_m[2] + 0.12 + geo.extent_m[2] / 2]))
+            d.qpos[h.arm_qpos] = solve_ik(robot, T_tcp, robot.home_q, "hold", IKConfig()).q
+            mujoco.mj_forward(robot.mj, d)
+            tcp = pin.SE3(d.site_xmat[h.tcp_site].reshape(3, 3).copy(), d.site_xpos[h.tcp_site].copy())
+            guess = tcp * pin.SE3(R_tcp_object, -R_tcp_object @ (lo + hi) / 2)
+            put(guess * pin.SE3(np.eye(3), R_tcp_object.T @ np.array([0.004, 0.0, 0.0])))
+            mujoco.mj_forward(robot.mj, d)
+            held = camera.in_hand(d, guess).T_world_object
+            # resting at the goal, the hand 3 cm above it
+            rest = pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, yaw),
+                           np.array([*scene.goal_pos_m[:2], scene.table_height_m - camera.model.z_min_m]))
+            put(rest)
+            T_tcp = pin.SE3(R, np.array([*scene.goal_pos_m[:2], rest.translation[2] + geo.extent_m[2] + 0.03]))
+            d.qpos[h.arm_qpos] = solve_ik(robot, T_tcp, robot.home_q, "hold", IKConfig()).q
+            mujoco.mj_forward(robot.mj, d)
+            estimates[mode] = (held, camera.recheck(d, rest, from_hand=True).T_world_object,
+                               camera.recheck(d, rest).T_world_object)
+        finally:
+            camera.close()
+    for name, a, b in zip(("in hand", "against the hand", "re-check"), *estimates.values(), strict=True):
+        assert np.linalg.norm(a.translation - b.translation) < 5e-5, name
+        assert np.linalg.norm(pin.log3(a.rotation.T @ b.rotation)) < 1e-3, name

@@ -11,6 +11,10 @@ turns the exact depth into what a stereo depth sensor reports (:func:`sensor_dep
   the sensor's range. Missing pixels are 0, as the sensor reports them.
 
 :func:`point_cloud` back-projects the valid pixels through the pinhole model into the world frame.
+
+A look that needs only part of the image renders and processes only that part: an :class:`ImageCrop` of the
+full frame, rendered through the same pinhole model (every pixel's ray is the full frame's pixel's; not a
+rescale) in a fraction of the time.
 """
 
 from __future__ import annotations
@@ -141,6 +145,52 @@ class CameraConfig:
         return z**2 * self.subpixel_px / (self.focal_px * self.baseline_m)
 
 
+@dataclass(frozen=True)
+class ImageCrop:
+    """A rectangle of a camera's image (px): columns ``u0`` to ``u0 + width - 1`` and rows ``v0`` to
+    ``v0 + height - 1`` (rows counted from the image's top, as in the images' arrays).
+
+    Attributes:
+        u0, v0: The first column and row (px).
+        width, height: Its size (px), at least 1.
+    """
+
+    u0: int
+    v0: int
+    width: int
+    height: int
+
+    @classmethod
+    def around(cls, u_lo: float, u_hi: float, v_lo: float, v_hi: float, config: CameraConfig,
+               margin_px: int = 0) -> ImageCrop:
+        """The pixels whose centres or any part lie within ``[u_lo, u_hi] x [v_lo, v_hi]`` (px, image
+        coordinates: pixel ``u`` spans ``[u, u + 1)``), widened by ``margin_px`` on every side and clipped to
+        ``config``'s image (at least one pixel)."""
+        u0 = min(max(0, math.floor(u_lo) - margin_px), config.width_px - 1)
+        v0 = min(max(0, math.floor(v_lo) - margin_px), config.height_px - 1)
+        u1 = max(min(config.width_px, math.floor(u_hi) + 1 + margin_px), u0 + 1)
+        v1 = max(min(config.height_px, math.floor(v_hi) + 1 + margin_px), v0 + 1)
+        return cls(u0, v0, u1 - u0, v1 - v0)
+
+    def union(self, other: ImageCrop) -> ImageCrop:
+        """The smallest crop holding both."""
+        u0, v0 = min(self.u0, other.u0), min(self.v0, other.v0)
+        u1 = max(self.u0 + self.width, other.u0 + other.width)
+        v1 = max(self.v0 + self.height, other.v0 + other.height)
+        return ImageCrop(u0, v0, u1 - u0, v1 - v0)
+
+    @property
+    def slices(self) -> tuple[slice, slice]:
+        """The crop's rows and columns of a full image: ``image[crop.slices]`` is the crop."""
+        return slice(self.v0, self.v0 + self.height), slice(self.u0, self.u0 + self.width)
+
+    def check(self, config: CameraConfig) -> None:
+        """Raise :class:`ConfigError` unless the crop lies inside ``config``'s image."""
+        if not (self.width >= 1 and self.height >= 1 and self.u0 >= 0 and self.v0 >= 0
+                and self.u0 + self.width <= config.width_px and self.v0 + self.height <= config.height_px):
+            raise ConfigError("crop", self, f"must lie inside the {config.width_px} x {config.height_px} px image")
+
+
 def _free_camera(c: CameraConfig) -> mujoco.MjvCamera:
     """MuJoCo's free camera at ``c``'s pose (optical axis from its position through its look-at point)."""
     forward = np.subtract(c.look_at_m, c.position_m)
@@ -191,28 +241,44 @@ class DepthCamera:
         self._cam = _free_camera(c)
 
     def _render(self, data: mujoco.MjData, camera: mujoco.MjvCamera, option: mujoco.MjvOption, depth: bool = True,
-                bodies: frozenset[int] | None = None) -> tuple[np.ndarray | None, np.ndarray | None]:
+                bodies: frozenset[int] | None = None,
+                crop: ImageCrop | None = None) -> tuple[np.ndarray | None, np.ndarray | None]:
         """One render of the scene: its exact depth (H, W) (m) if ``depth``, and which pixels show a geom of one of
-        ``bodies`` first (H, W) (bool) if ``bodies`` is given, both read from the same image.
+        ``bodies`` first (H, W) (bool) if ``bodies`` is given, both read from the same image; of the ``crop`` of
+        the image only (h, w) if one is given.
 
         What ``mujoco.Renderer.render`` does in its depth and its segmentation modes (both render with the
         segmentation flags: the same image), with both buffers read at once: MuJoCo's depth buffer converted to
         metric depth as it converts it (float32 as it returns it), and the segmentation colours (the scene's geom
         index plus one) looked up in a table of the scene's geoms. Uses the renderer's OpenGL and MuJoCo render
         contexts (``_gl_context``, ``_mjr_context``: the mujoco 3.x-4.x ``Renderer``'s).
+
+        A crop is rendered on its own (:meth:`_narrow`): a viewport of its size and the part of the camera's
+        frustum that its pixels see, so that each of its pixels is the full image's pixel there (the same ray;
+        its depth the same to float32 rounding, its geom the same) and only its pixels are drawn. The
+        rasterizer rounds the projected vertices to its sub-pixel grid and may round the crop's the other way:
+        then a pixel whose centre lies on a silhouette's edge shows the other side, or a steep surface's depth
+        differs by microns (a handful of pixels in an image).
         """
         r = self._renderer
         r.update_scene(data, camera=camera, scene_option=option)
-        scene, ctx, rect = r.scene, r._mjr_context, mujoco.MjrRect(0, 0, r.width, r.height)
+        scene, ctx = r.scene, r._mjr_context
         if ctx is None:
             raise RuntimeError("render cannot be called after close")
+        if crop is not None and (crop.width, crop.height) == (r.width, r.height):
+            crop = None  # the full frame
+        if crop is not None:
+            crop.check(self.config)
+            self._narrow(scene, crop)
+        w, h = (r.width, r.height) if crop is None else (crop.width, crop.height)
+        rect = mujoco.MjrRect(0, 0, w, h)
         if r._gl_context is not None:
             r._gl_context.make_current()
         flags = scene.flags.copy()
         scene.flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = True
         scene.flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = True
-        zbuf = np.empty((r.height, r.width), dtype=np.float32) if depth else None
-        rgb = np.empty((r.height, r.width, 3), dtype=np.uint8) if bodies is not None else None
+        zbuf = np.empty((h, w), dtype=np.float32) if depth else None
+        rgb = np.empty((h, w, 3), dtype=np.uint8) if bodies is not None else None
         try:
             mujoco.mjr_render(rect, scene, ctx)
             mujoco.mjr_readPixels(rgb, zbuf, rect, ctx)
@@ -235,6 +301,28 @@ class DepthCamera:
             mask = np.flipud(lut[seg])
         return z, mask
 
+    def _narrow(self, scene: mujoco.MjvScene, crop: ImageCrop) -> None:
+        """Narrow the scene's cameras (updated for the full image) to what the pixels of ``crop`` see.
+
+        ``mjr_render`` projects with ``glFrustum`` from each camera's ``frustum_center``, ``frustum_bottom`` and
+        ``frustum_top`` (m, on the near plane), its half-width ``frustum_width``, or when that is 0 the one that
+        makes the pixels square in the viewport. A pixel of the full image spans ``(top - bottom) / H`` there; the
+        crop's part of the near plane is the span of its columns and rows, and with ``frustum_width`` 0 and a
+        viewport of the crop's size, its pixels come out square, the full image's pixels.
+        """
+        W, H = self.config.width_px, self.config.height_px
+        for cam in scene.camera:
+            if cam.frustum_width != 0.0:
+                raise RuntimeError(f"the scene's camera has frustum_width {cam.frustum_width}: cannot crop it "
+                                   "(a free camera's is 0)")
+            bottom, top = float(cam.frustum_bottom), float(cam.frustum_top)
+            pixel = (top - bottom) / H
+            left = float(cam.frustum_center) - 0.5 * W * pixel + crop.u0 * pixel
+            low = bottom + (H - crop.v0 - crop.height) * pixel  # OpenGL's rows go up from the image's bottom
+            cam.frustum_center = left + 0.5 * crop.width * pixel
+            cam.frustum_bottom = low
+            cam.frustum_top = low + crop.height * pixel
+
     def _metric(self, zbuf: np.ndarray) -> np.ndarray:
         """MuJoCo's (reversed-Z, perspective) depth buffer (H, W) as metric depth along the optical axis (m),
         float32, computed as ``mujoco.Renderer.render`` computes it."""
@@ -248,7 +336,7 @@ class DepthCamera:
         return (d_coef / (zbuf.astype(np.float64) + c_coef)).astype(np.float32)
 
     def render_depth(self, data: mujoco.MjData, seen_from: CameraConfig | None = None,
-                     hide_object: bool = False) -> np.ndarray:
+                     hide_object: bool = False, crop: ImageCrop | None = None) -> np.ndarray:
         """The exact depth (H, W) (m) along the optical axis of every pixel, from the simulation as it is.
 
         Args:
@@ -257,6 +345,8 @@ class DepthCamera:
                 :meth:`CameraConfig.drawn`); its image size and field of view must be the config's.
             hide_object: Leave the object out: the scene as the robot's model of it looks without the object
                 (its own links, the table), for comparing with what the sensor sees.
+            crop: Render only this part of the image: the depth (h, w) of its pixels, those of the full image
+                (see :meth:`_render`).
         """
         camera = self._cam
         if seen_from is not None:
@@ -267,24 +357,26 @@ class DepthCamera:
                                   f"must have this camera's image size and field of view ({c.width_px}, "
                                   f"{c.height_px}, {c.vertical_fov_rad})")
             camera = _free_camera(seen_from)
-        z, _ = self._render(data, camera, self._known if hide_object else self._seen)
+        z, _ = self._render(data, camera, self._known if hide_object else self._seen, crop=crop)
         assert z is not None
         return z
 
-    def render_mask(self, data: mujoco.MjData, bodies: frozenset[int]) -> np.ndarray:
+    def render_mask(self, data: mujoco.MjData, bodies: frozenset[int], crop: ImageCrop | None = None) -> np.ndarray:
         """Which pixels (H, W) show a geom of one of ``bodies`` first (bool): a self-filter, for the parts of the
-        scene the robot knows (its own links at their known configuration, the obstacles of its map)."""
-        _, mask = self._render(data, self._cam, self._seen, depth=False, bodies=bodies)
+        scene the robot knows (its own links at their known configuration, the obstacles of its map). With
+        ``crop``: its pixels only (h, w), the full image's there (see :meth:`_render`)."""
+        _, mask = self._render(data, self._cam, self._seen, depth=False, bodies=bodies, crop=crop)
         assert mask is not None
         return mask
 
-    def render_view(self, data: mujoco.MjData, bodies: frozenset[int]) -> tuple[np.ndarray, np.ndarray]:
+    def render_view(self, data: mujoco.MjData, bodies: frozenset[int],
+                    crop: ImageCrop | None = None) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`render_depth` (the scene as seen, from the config's pose) and :meth:`render_mask` from one
-        render: the depth (H, W) (m) and the pixels of ``bodies`` (H, W) (bool). Where a pixel shows one of
-        ``bodies`` first, its depth is that body's, the depth ``hide_object`` gives there too. (Read together
-        with the colours, a depth may differ from :meth:`render_depth`'s in the float32 depth buffer's last bit:
-        0.5 um at 1.6 m.)"""
-        z, mask = self._render(data, self._cam, self._seen, bodies=bodies)
+        render: the depth (H, W) (m) and the pixels of ``bodies`` (H, W) (bool) (with ``crop``: of its pixels,
+        (h, w)). Where a pixel shows one of ``bodies`` first, its depth is that body's, the depth
+        ``hide_object`` gives there too. (Read together with the colours, a depth may differ from
+        :meth:`render_depth`'s in the float32 depth buffer's last bit: 0.5 um at 1.6 m.)"""
+        z, mask = self._render(data, self._cam, self._seen, bodies=bodies, crop=crop)
         assert z is not None and mask is not None
         return z, mask
 
@@ -326,25 +418,32 @@ def sensor_depth(depth_m: np.ndarray, config: CameraConfig, rng: np.random.Gener
     return np.where(missing, 0.0, noisy)
 
 
-def point_cloud(depth_m: np.ndarray, config: CameraConfig, pixels: np.ndarray | None = None) -> np.ndarray:
+def point_cloud(depth_m: np.ndarray, config: CameraConfig, pixels: np.ndarray | None = None,
+                crop: ImageCrop | None = None) -> np.ndarray:
     """Back-project the valid (non-zero) pixels of a depth image (H, W) (m) into world points (N, 3) (m).
 
     Args:
         depth_m: Depth along the optical axis (m); 0 marks a missing pixel.
         config: The camera (its pose and intrinsics).
         pixels: Optional boolean mask (H, W) of the pixels to use (e.g. a segmentation).
+        crop: The part of the image that ``depth_m`` (and ``pixels``) are (h, w); default: the whole image.
     """
     z = np.asarray(depth_m, dtype=float)
     h, w = z.shape
-    if (h, w) != (config.height_px, config.width_px):
-        raise ConfigError("depth_m", z.shape, f"must be ({config.height_px}, {config.width_px}), the camera's image")
+    if crop is None:
+        crop = ImageCrop(0, 0, config.width_px, config.height_px)
+    else:
+        crop.check(config)
+    if (h, w) != (crop.height, crop.width):
+        raise ConfigError("depth_m", z.shape, f"must be ({crop.height}, {crop.width}), the camera's image"
+                          + ("" if (crop.width, crop.height) == (config.width_px, config.height_px) else "'s crop"))
     valid = z > 0.0 if pixels is None else (z > 0.0) & pixels
     v, u = np.nonzero(valid)
     d = z[v, u]
     f = config.focal_px
-    x = (u + 0.5 - 0.5 * w) * d / f
-    y = (v + 0.5 - 0.5 * h) * d / f
+    x = (u + (crop.u0 + 0.5 - 0.5 * config.width_px)) * d / f
+    y = (v + (crop.v0 + 0.5 - 0.5 * config.height_px)) * d / f
     return np.asarray(config.position_m) + np.column_stack([x, y, d]) @ config.R_world_camera.T
 
 
-__all__ = ["CameraConfig", "DepthCamera", "point_cloud", "sensor_depth"]
+__all__ = ["CameraConfig", "DepthCamera", "ImageCrop", "point_cloud", "sensor_depth"]

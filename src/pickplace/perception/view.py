@@ -22,6 +22,14 @@ pixels for the calibration error. Then:
   camera's calibration error cancels out of that to first order (what is left is its rotation error times the
   few centimetres between the gripper and the object).
 
+A look near a known place (:meth:`TableCamera.recheck`, :meth:`TableCamera.locate` with ``near``,
+:meth:`TableCamera.in_hand`) renders and processes only the part of the image it uses
+(:class:`~pickplace.perception.camera.ImageCrop`): the rectangle of pixels it back-projects around the object
+and, measured against the hand, the hand's pixels, widened by :data:`CROP_MARGIN_PX` so that every pixel it
+uses is as in the full frame (the self-filter's widening, its shift by the calibration offset and the search of
+:func:`register_offset` reach less far than that); only the sensor's noise draws differ. A look over the whole
+table takes the full frame.
+
 The only simulator state read here is what a sensor reads: the rendered images. The robot's own configuration
 (for its self-filter and its model of itself) is the robot's knowledge, not the object's.
 """
@@ -37,7 +45,7 @@ import numpy as np
 import pinocchio as pin
 from scipy import ndimage
 
-from pickplace.perception.camera import CameraConfig, DepthCamera, point_cloud, sensor_depth
+from pickplace.perception.camera import CameraConfig, DepthCamera, ImageCrop, point_cloud, sensor_depth
 from pickplace.perception.pose import (
     ObjectNotSeen,
     PoseEstimate,
@@ -58,6 +66,13 @@ MASK_MARGIN_PX = 4
 HAND_RADIUS_M = 0.15
 #: Search radius beyond the object's bounding sphere around where it should be (m).
 SEARCH_MARGIN_M = 0.03
+#: Largest image shift :func:`register_offset` searches when a look measures against the hand (px).
+MAX_SHIFT_PX = 10
+#: Pixels around what a look near a known place uses that it renders too (px): more than the farthest a pixel
+#: it uses depends on: the self-filter's widening (:data:`MASK_MARGIN_PX`; after its shift by the calibration
+#: offset, up to :data:`MAX_SHIFT_PX` and 2 px of widening), :func:`register_offset`'s search (up to
+#: :data:`MAX_SHIFT_PX` and a pixel of interpolation), the sensor's depth edges (its ``edge_px``).
+CROP_MARGIN_PX = 16
 
 
 def _masked_median(values: np.ndarray, ok: np.ndarray) -> np.ndarray:
@@ -84,7 +99,7 @@ def _masked_median(values: np.ndarray, ok: np.ndarray) -> np.ndarray:
 
 
 def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray, config: CameraConfig,
-                    max_shift_px: int = 10) -> tuple[np.ndarray, np.ndarray]:
+                    max_shift_px: int = MAX_SHIFT_PX) -> tuple[np.ndarray, np.ndarray]:
     """How far the scene the sensor sees is displaced from the robot's model of it, around ``region``.
 
     Over the model's pixels in ``region`` (the robot's own, near the hand), finds the image shift (du, dv) (px)
@@ -98,6 +113,9 @@ def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray,
     pixels around the best so far), the costs of a stage's shifts together (:func:`_masked_median`). (A coarser
     whole-pixel search, every other shift and then a descent, was tried: the cost can have two minima a pixel or
     two apart, and it found the other one.)
+
+    The three images may be the same crop of the camera's images (an image shift is the same in a crop);
+    beyond the images' edges the measured image counts as missing.
 
     Args:
         measured: The sensor's depth image (H, W) (m; 0 where missing).
@@ -210,36 +228,77 @@ class TableCamera:
         """Release the OpenGL context."""
         self.camera.close()
 
-    def _scene(self, d: mujoco.MjData, own: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    def _scene(self, d: mujoco.MjData, own: bool = False,
+               crop: ImageCrop | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """The exact depth image of the scene now, seen from where the camera really is, the pixels of what
         the robot knows is there, and (``own``) the robot's model of the scene: its depth rendered where it
         believes the camera is, from the same render as those pixels (renders: the frames of one look share
-        them; each has its own noise, :meth:`_frame`)."""
-        exact = self.camera.render_depth(d, seen_from=self.real)
+        them; each has its own noise, :meth:`_frame`). Of the pixels of ``crop`` only, if one is given."""
+        exact = self.camera.render_depth(d, seen_from=self.real, crop=crop)
         if own:
-            model, known = self.camera.render_view(d, self.known)
+            model, known = self.camera.render_view(d, self.known, crop=crop)
             return exact, known, model
-        return exact, self.camera.render_mask(d, self.known), None
+        return exact, self.camera.render_mask(d, self.known, crop=crop), None
 
     def _frame(self, exact: np.ndarray) -> np.ndarray:
         """One depth frame as the sensor reports it (its noise drawn now)."""
         self.images += 1
         return sensor_depth(exact, self.config, self.rng)
 
-    def _window(self, T_world_object: pin.SE3) -> np.ndarray:
-        """The pixels (H, W) (bool) of the image's rectangle around the object's bounding sphere at this pose
-        (plus the table around it), so that a look near a known place back-projects only those."""
+    def _window(self, T_world_object: pin.SE3) -> tuple[int, int, int, int] | None:
+        """The image's rectangle around the object's bounding sphere at this pose (plus the table around it),
+        so that a look near a known place back-projects only those pixels: columns ``u0:u1`` and rows
+        ``v0:v1`` (px), or None when it holds no pixel."""
         c = self.config
         centre = T_world_object.act(self._centre_local)
         x, y, z = c.R_world_camera.T @ (centre - np.asarray(c.position_m))
-        window = np.zeros((c.height_px, c.width_px), dtype=bool)
         if z <= c.min_range_m:
-            return window
+            return None
         f = c.focal_px
         u, v = f * x / z + c.width_px / 2, f * y / z + c.height_px / 2
         r = 2 * self._radius_m * f / z + MASK_MARGIN_PX
-        window[max(0, int(v - r)):max(0, int(v + r) + 1), max(0, int(u - r)):max(0, int(u + r) + 1)] = True
-        return window
+        u0, u1 = max(0, int(u - r)), min(c.width_px, max(0, int(u + r) + 1))
+        v0, v1 = max(0, int(v - r)), min(c.height_px, max(0, int(v + r) + 1))
+        return (u0, u1, v0, v1) if u0 < u1 and v0 < v1 else None
+
+    def _hand_bounds(self, d: mujoco.MjData) -> tuple[float, float, float, float] | None:
+        """Where the pixels of the robot's own points within :data:`HAND_RADIUS_M` of the tcp can be in the image
+        rendered where it believes the camera is (:meth:`_own_hand`): the image coordinates (px) ``u_lo, u_hi,
+        v_lo, v_hi`` of the corners of the cube around that sphere; None if part of it is not in front of the
+        camera."""
+        c = self.config
+        tcp = d.site_xpos[self.robot.handles.tcp_site]
+        corners = (c.R_world_camera.T @ (tcp - np.asarray(c.position_m)))[:, None] + HAND_RADIUS_M * np.array(
+            [[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]).T
+        if np.any(corners[2] <= c.min_range_m):
+            return None
+        f = c.focal_px
+        u = f * corners[0] / corners[2] + c.width_px / 2
+        v = f * corners[1] / corners[2] + c.height_px / 2
+        return float(u.min()), float(u.max()), float(v.min()), float(v.max())
+
+    def _look(self, d: mujoco.MjData, near: pin.SE3 | None,
+              from_hand: bool) -> tuple[ImageCrop | None, np.ndarray | None]:
+        """The part of the image a look renders (None: the full frame) and the pixels of it that it back-projects
+        (bool, the crop's shape; None: all): near a pose, its :meth:`_window` and (``from_hand``) where the hand's
+        pixels can be (:meth:`_hand_bounds`), each widened by :data:`CROP_MARGIN_PX`."""
+        if near is None:
+            return None, None
+        c = self.config
+        rect = self._window(near)
+        crop = None
+        if rect is not None:
+            u0, u1, v0, v1 = rect
+            crop = ImageCrop.around(u0, u1 - 1, v0, v1 - 1, c, CROP_MARGIN_PX)
+            if from_hand:
+                bounds = self._hand_bounds(d)
+                crop = None if bounds is None else crop.union(ImageCrop.around(*bounds, c, CROP_MARGIN_PX))
+        frame = crop if crop is not None else ImageCrop(0, 0, c.width_px, c.height_px)
+        window = np.zeros((frame.height, frame.width), dtype=bool)
+        if rect is not None:
+            u0, u1, v0, v1 = rect
+            window[v0 - frame.v0:v1 - frame.v0, u0 - frame.u0:u1 - frame.u0] = True
+        return crop, window
 
     def object_sphere(self, T_world_object: pin.SE3, held_at: np.ndarray | None = None) -> tuple[np.ndarray, float]:
         """Where the object may be (centre (3,) (m), radius (m)), widened by :data:`SEARCH_MARGIN_M`, whatever
@@ -255,14 +314,16 @@ class TableCamera:
         centre = T_world_object.act(self._centre_local)
         return points[np.linalg.norm(points - centre, axis=1) < self._radius_m]
 
-    def _own_hand(self, d: mujoco.MjData, known: np.ndarray, own: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _own_hand(self, d: mujoco.MjData, known: np.ndarray, own: np.ndarray,
+                  crop: ImageCrop | None = None) -> tuple[np.ndarray, np.ndarray]:
         """The robot's model of the scene rendered where it believes the camera is (H, W) (m) (:meth:`_scene`:
         at the pixels of its own links, their depth), and its own pixels near the tcp (H, W) (bool): what
-        :meth:`_hand_offset` matches."""
+        :meth:`_hand_offset` matches (images of ``crop`` if given)."""
         tcp = d.site_xpos[self.robot.handles.tcp_site]
         own_px = known & (own > 0.0)
         hand = np.zeros(known.shape, dtype=bool)  # only those pixels are back-projected
-        hand[own_px] = np.linalg.norm(point_cloud(own, self.config, own_px) - tcp, axis=1) < HAND_RADIUS_M
+        hand[own_px] = np.linalg.norm(point_cloud(own, self.config, own_px, crop=crop) - tcp,
+                                      axis=1) < HAND_RADIUS_M
         return own, hand
 
     def _hand_offset(self, depth: np.ndarray, known: np.ndarray, own: np.ndarray,
@@ -292,11 +353,11 @@ class TableCamera:
         """
         t0 = time.perf_counter()
         try:
-            window = None if near is None else self._window(near)
-            exact, known, model = self._scene(d, own=from_hand)
+            crop, window = self._look(d, near, from_hand)
+            exact, known, model = self._scene(d, own=from_hand, crop=crop)
             if from_hand:
                 assert model is not None
-                own, hand = self._own_hand(d, known, model)
+                own, hand = self._own_hand(d, known, model, crop)
             else:
                 offset, mask = np.zeros(3), ndimage.binary_dilation(known, iterations=MASK_MARGIN_PX)
             clouds = []
@@ -305,7 +366,7 @@ class TableCamera:
                 if from_hand:
                     offset, mask = self._hand_offset(depth, known, own, hand)
                 pixels = ~mask if window is None else ~mask & window
-                clouds.append(point_cloud(depth, self.config, pixels) - offset)
+                clouds.append(point_cloud(depth, self.config, pixels, crop=crop) - offset)
             cloud = np.concatenate(clouds)
             table = observed_table_height(cloud, self.robot.scene.table_height_m, self.table_box)
             if near is not None:
@@ -340,11 +401,13 @@ class TableCamera:
         """
         t0 = time.perf_counter()
         try:
-            exact, known, model = self._scene(d, own=True)
+            crop, window = self._look(d, guess, from_hand=True)
+            assert window is not None
+            exact, known, model = self._scene(d, own=True, crop=crop)
             assert model is not None
             depth = self._frame(exact)
-            offset, mask = self._hand_offset(depth, known, *self._own_hand(d, known, model))
-            points = self._near(point_cloud(depth, self.config, ~mask & self._window(guess)) - offset, guess)
+            offset, mask = self._hand_offset(depth, known, *self._own_hand(d, known, model, crop))
+            points = self._near(point_cloud(depth, self.config, ~mask & window, crop=crop) - offset, guess)
             points = points[points[:, 2] > self.robot.scene.table_height_m + self.clearance_m]
             est = fit_held_pose(points, self.obj, guess, self.rng, model=self.model, free_axes=free_axes)
             log.debug("in hand: calibration offset at the gripper (%.1f, %.1f, %.1f) mm; object %.1f mm from the "
@@ -355,4 +418,4 @@ class TableCamera:
             self.wall_s += time.perf_counter() - t0
 
 
-__all__ = ["HAND_RADIUS_M", "MASK_MARGIN_PX", "TableCamera", "register_offset"]
+__all__ = ["CROP_MARGIN_PX", "HAND_RADIUS_M", "MASK_MARGIN_PX", "MAX_SHIFT_PX", "TableCamera", "register_offset"]
