@@ -29,7 +29,7 @@ import numpy as np
 import pinocchio as pin
 
 from pickplace.errors import ConfigError
-from pickplace.perception.render import make_renderer
+from pickplace.perception.render import RenderError, make_renderer
 from pickplace.robot.model import Robot
 from pickplace.world.config import check_int, check_range, check_vector
 
@@ -212,7 +212,8 @@ class DepthCamera:
         config: The camera.
 
     Raises:
-        RenderError: no OpenGL context, or an image larger than the model's offscreen buffer.
+        RenderError: no OpenGL context, an image larger than the model's offscreen buffer, or a mujoco whose
+            ``Renderer`` does not expose its render contexts.
     """
 
     def __init__(self, robot: Robot, config: CameraConfig | None = None) -> None:
@@ -237,6 +238,9 @@ class DepthCamera:
         self._known.geomgroup[:] = self._seen.geomgroup
         self._known.geomgroup[_OBJECT_GROUP] = 0
         self._renderer, self.backend = make_renderer(self._m, c.width_px, c.height_px)
+        if not all(hasattr(self._renderer, a) for a in ("_gl_context", "_mjr_context")):  # (:meth:`_render`)
+            raise RenderError(f"mujoco {mujoco.__version__}'s Renderer has no _gl_context and _mjr_context, "
+                              "through which the depth camera renders (mujoco 3.3 to 4.x have them)")
         self._renderer.enable_depth_rendering()
         self._cam = _free_camera(c)
 
