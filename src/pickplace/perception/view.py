@@ -75,6 +75,12 @@ MAX_SHIFT_PX = 10
 CROP_MARGIN_PX = 16
 
 
+#: :func:`register_offset` evaluates every whole-pixel shift on every :data:`SHORTLIST_EVERY`-th pixel of the
+#: region, then the :data:`SHORTLIST` shifts that estimate puts lowest on every pixel.
+SHORTLIST = 24
+SHORTLIST_EVERY = 4
+
+
 def _masked_median(values: np.ndarray, ok: np.ndarray) -> np.ndarray:
     """Each row's median over its entries where ``ok``: the value ``np.median(values[i][ok[i]])`` gives, for
     all rows (k, n) at once (every row needs at least one ``ok`` entry).
@@ -110,9 +116,14 @@ def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray,
     ``R_world_camera @ (du z / f, dv z / f, dz)`` (z the region's median depth, f the focal length).
 
     Every shift of a stage is evaluated (all whole pixels of the range; then 3 x 3 half and 11 x 11 tenth
-    pixels around the best so far), the costs of a stage's shifts together (:func:`_masked_median`). (A coarser
-    whole-pixel search, every other shift and then a descent, was tried: the cost can have two minima a pixel or
-    two apart, and it found the other one.)
+    pixels around the best so far), the costs of a stage's shifts together (:func:`_masked_median`). The whole
+    pixels are ranked first by the cost over every :data:`SHORTLIST_EVERY`-th pixel of the region, and the
+    :data:`SHORTLIST` best of that estimate are evaluated on all of them: on the 80 looks against the hand of
+    realistic episodes 0-5 the estimate's best was the exact search's every time, and the result equals that of
+    evaluating all 441 exactly (``tests/test_camera.py`` compares the two on noisy images). (A coarser whole-pixel
+    search, every other shift and then a descent, was tried: the cost can have two minima a pixel or two apart,
+    and it found the other one. A shortlist of the tenth pixels changed 5 of those 80 results even at 8 of 121:
+    their costs are too close for an estimate.)
 
     The three images may be the same crop of the camera's images (an image shift is the same in a crop);
     beyond the images' edges the measured image counts as missing.
@@ -143,20 +154,22 @@ def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray,
     flat, row = framed.ravel(), w + 2 * pad
     uu, vv, zm = u, v, z_model
 
-    def costs(shifts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def costs(shifts: np.ndarray, every: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """The median absolute residual (m) and the median residual dz (m) at each shift (k, 2) (du, dv) (px);
-        inf where fewer than half of the region's pixels are valid."""
+        inf where fewer than half of the region's pixels are valid. Over every ``every``-th pixel of the region
+        only, if ``every`` > 1 (an estimate)."""
         du, dv = shifts[:, :1], shifts[:, 1:]
+        us, vs, zs = (uu, vv, zm) if every == 1 else (uu[::every], vv[::every], zm[::every])
         if np.all(shifts == np.round(shifts)):
-            z = flat[(vv + pad) * row + uu + pad + (dv * row + du).astype(int)]
+            z = flat[(vs + pad) * row + us + pad + (dv * row + du).astype(int)]
         else:
-            z = ndimage.map_coordinates(framed, [vv + pad + dv, uu + pad + du], order=1)
+            z = ndimage.map_coordinates(framed, [vs + pad + dv, us + pad + du], order=1)
             # between the image's last pixel and the frame: outside, as beyond it
-            z[(uu + du < 0) | (uu + du > w - 1) | (vv + dv < 0) | (vv + dv > h - 1)] = 0.0
+            z[(us + du < 0) | (us + du > w - 1) | (vs + dv < 0) | (vs + dv > h - 1)] = 0.0
         ok = z > 0.0
-        r = z - zm
+        r = z - zs
         cost, dz = np.full(len(shifts), np.inf), np.zeros(len(shifts))
-        enough = ok.sum(axis=1) >= len(zm) // 2
+        enough = ok.sum(axis=1) >= len(zs) // 2
         if np.any(enough):
             r, ok = r[enough], ok[enough]
             dz[enough] = _masked_median(r, ok)
@@ -172,6 +185,9 @@ def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray,
     best = (np.inf, 0.0, np.zeros(2))
     for step, span in ((1.0, max_shift_px), (0.5, 1), (0.1, 5)):
         shifts = grid(best[2], step, span)
+        if step == 1.0 and len(shifts) > SHORTLIST:  # the whole pixels: a shortlist by an estimate, then exactly
+            estimate, _ = costs(shifts, SHORTLIST_EVERY)
+            shifts = shifts[np.sort(np.argsort(estimate, kind="stable")[:SHORTLIST])]
         cs, dzs = costs(shifts)
         i = int(np.argmin(cs))
         if cs[i] < best[0]:
