@@ -314,7 +314,7 @@ class SensingConfig:
             stream): their noise averages (the re-checks take one).
         obstacle_period_s: Period of the camera's looks for unknown obstacles while the robot plans and moves
             along a planned path (s) (:mod:`pickplace.perception.obstacles`): each renders, filters and bins
-            an image (about 20 ms of processing here), so 10 Hz; the predictor checks the rest of the path
+            an image (about 12 ms here, two renders), so 10 Hz; the predictor checks the rest of the path
             against the latest.
     """
 
