@@ -27,7 +27,7 @@ from pickplace.perception.view import TableCamera, _masked_median, register_offs
 from pickplace.robot import gripper
 from pickplace.robot.gripper import GripperConfig
 from pickplace.robot.ik import IKConfig, solve_ik
-from pickplace.robot.model import build
+from pickplace.robot.model import Robot, build
 from pickplace.robot.model_error import ModelErrorConfig
 from pickplace.task.episode import EpisodeConfig, run_episode
 from pickplace.task.observe import SensorObserver, SimulatorObserver
@@ -161,6 +161,18 @@ def test_masked_median_is_each_rows_median_of_its_valid_entries() -> None:
     assert np.array_equal(_masked_median(values, ok), expected)
 
 
+def _hand_over_goal(robot: Robot, d: mujoco.MjData, scene: SceneConfig, yaw: float) -> pin.SE3:
+    """Put the arm (by IK) with a top-down tcp at ``yaw`` (rad) holding the scene's object 0.12 m over its goal;
+    return the tcp's pose (forward kinematics done)."""
+    h = robot.handles
+    R = np.diag([1.0, -1.0, -1.0]) @ pin.rpy.rpyToMatrix(0.0, 0.0, yaw)
+    T_tcp = pin.SE3(R, np.array([*scene.goal_pos_m[:2],
+                                 scene.goal_pos_m[2] + 0.12 + scene.object.geometry().extent_m[2] / 2]))
+    d.qpos[h.arm_qpos] = solve_ik(robot, T_tcp, robot.home_q, "hold", IKConfig()).q
+    mujoco.mj_forward(robot.mj, d)
+    return pin.SE3(d.site_xmat[h.tcp_site].reshape(3, 3).copy(), d.site_xpos[h.tcp_site].copy())
+
+
 def test_the_held_object_is_measured_against_the_hand_through_the_calibration_error() -> None:
     """A cube held 0.12 m over the goal, off the grasp model by up to 8 mm along the pads: with the camera's
     calibration error (2 mm and 0.2 degrees per axis, which displaces the points there by several mm), the
@@ -179,11 +191,7 @@ def test_the_held_object_is_measured_against_the_hand_through_the_calibration_er
         camera = TableCamera(robot, CameraConfig(), rng)
         try:
             yaw = rng.uniform(-1.0, 1.0)
-            R = np.diag([1.0, -1.0, -1.0]) @ pin.rpy.rpyToMatrix(0.0, 0.0, yaw)
-            T_tcp = pin.SE3(R, np.array([*scene.goal_pos_m[:2], scene.goal_pos_m[2] + 0.12 + geo.extent_m[2] / 2]))
-            d.qpos[h.arm_qpos] = solve_ik(robot, T_tcp, robot.home_q, "hold", IKConfig()).q
-            mujoco.mj_forward(robot.mj, d)
-            tcp = pin.SE3(d.site_xmat[h.tcp_site].reshape(3, 3).copy(), d.site_xpos[h.tcp_site].copy())
+            tcp = _hand_over_goal(robot, d, scene, yaw)
             off = rng.uniform(-0.008, 0.008)
             model = tcp * pin.SE3(R_tcp_object, -R_tcp_object @ centre)
             truth = tcp * pin.SE3(R_tcp_object, np.array([off, 0.0, 0.0]) - R_tcp_object @ centre)
@@ -330,12 +338,8 @@ def test_a_look_near_a_known_place_sees_in_its_crop_what_the_full_frame_shows(
         camera = TableCamera(robot, config, rng)
         try:
             yaw = rng.uniform(-1.0, 1.0)
-            R = np.diag([1.0, -1.0, -1.0]) @ pin.rpy.rpyToMatrix(0.0, 0.0, yaw)
-            # held 0.12 m over the goal, 4 mm off the grasp model along the pads
-            T_tcp = pin.SE3(R, np.array([*scene.goal_pos_m[:2], scene.goal_pos_m[2] + 0.12 + geo.extent_m[2] / 2]))
-            d.qpos[h.arm_qpos] = solve_ik(robot, T_tcp, robot.home_q, "hold", IKConfig()).q
-            mujoco.mj_forward(robot.mj, d)
-            tcp = pin.SE3(d.site_xmat[h.tcp_site].reshape(3, 3).copy(), d.site_xpos[h.tcp_site].copy())
+            R = np.diag([1.0, -1.0, -1.0]) @ pin.rpy.rpyToMatrix(0.0, 0.0, yaw)  # the top-down hand at yaw
+            tcp = _hand_over_goal(robot, d, scene, yaw)  # held 4 mm off the grasp model along the pads:
             guess = tcp * pin.SE3(R_tcp_object, -R_tcp_object @ (lo + hi) / 2)
             put(guess * pin.SE3(np.eye(3), R_tcp_object.T @ np.array([0.004, 0.0, 0.0])))
             mujoco.mj_forward(robot.mj, d)
