@@ -227,7 +227,7 @@ class CollisionChecker:
         if self._shared.owner != self._token:
             self._load()
         d = self._d
-        d.qpos[self._arm] = q
+        self._arm_qpos[:] = q
         mujoco.mj_kinematics(self._m, d)
         mujoco.mj_collision(self._m, d)
         self.checks += 1
@@ -243,8 +243,7 @@ class CollisionChecker:
         out = np.empty(len(qs), dtype=bool)
         if self._shared.owner != self._token:
             self._load()
-        m, d, arm, kinematics, collision = self._m, self._d, self._d.qpos[self._arm], mujoco.mj_kinematics, \
-            mujoco.mj_collision
+        m, d, arm, kinematics, collision = self._m, self._d, self._arm_qpos, mujoco.mj_kinematics, mujoco.mj_collision
         for i, q in enumerate(qs):
             arm[:] = q
             kinematics(m, d)

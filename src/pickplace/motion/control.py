@@ -1156,15 +1156,14 @@ def _run_joint(
         return rec
 
     computed_torque = bandwidth > 0.0 and ff
-    if fast or computed_torque:  # the reference's terms of the law, for every tick at once (elementwise: the same
-        # numbers)
+    if fast or computed_torque:  # the reference's terms of the law, for every tick at once (elementwise: the same)
         model, data, qp = arm.model, arm.data, arm._q
         vel = np.zeros((n + 1, model.nv))
         vel[:, :N_ARM] = qd_ref
         accel = np.zeros((n + 1, model.nv))
         accel[:, :N_ARM] = qdd_ref
         damp_ref = arm.damping * qd_ref
-        rnea, crba, where = pin.rnea, pin.crba, np.where
+        rnea = pin.rnea
         w2, w_damp = bandwidth * bandwidth, 2.0 * zeta_j * bandwidth
 
     def law(k: int, q: np.ndarray, qd: np.ndarray) -> np.ndarray | None:
@@ -1187,10 +1186,7 @@ def _run_joint(
             tau += kp * e
             tau += kd * (qd_ref[i] - qd)
         elif computed_torque:  # joint_impedance(bandwidth_rad_s=w, feedforward=True), operation for operation
-            qp[:N_ARM] = q
-            qp[N_ARM:] = qpos[finger]
-            M = crba(model, data, qp)[:N_ARM, :N_ARM]
-            inertia = where(_UPPER, M, M.T)  # crba fills the upper triangle
+            inertia = arm_inertia(arm, q, qpos[finger])  # (it sets the configuration rnea reads below)
             acc = w2 * e
             acc += w_damp * (qd_ref[i] - qd)
             tau = inertia.dot(acc)

@@ -184,7 +184,7 @@ class ControlLoop:
             if not isinstance(self.rng, np.random.Generator):
                 raise ConfigError("loop.rng", self.rng, "must be a seeded numpy.random.Generator when "
                                                         "loop.encoder_noise_std_rad > 0")
-            object.__setattr__(self, "_draws", _Draws(self.rng))
+            object.__setattr__(self, "_draws", _Draws(self.rng, self.config.encoder_noise_std_rad))
 
     @property
     def ideal(self) -> bool:
@@ -247,9 +247,9 @@ class ControlLoop:
             dt = float(m.opt.timestep)
             period, latency = cfg.steps(dt)
             T = period * dt
-            res, std = cfg.encoder_resolution_rad, cfg.encoder_noise_std_rad
+            res = cfg.encoder_resolution_rad
             alpha = 1.0 - math.exp(-2.0 * math.pi * cfg.velocity_cutoff_hz * T) if cfg.velocity_cutoff_hz > 0 else 0.0
-            draws = self._draws if std > 0.0 else None
+            draws = self._draws  # (None without encoder noise)
             pending: deque[tuple[int, np.ndarray]] = deque()
             # two reading buffers, swapped at each tick (this tick's and the last one's); the velocity estimate is
             # updated in place (a warm filter: it starts at the arm's velocity) and handed to the law as is
@@ -271,7 +271,7 @@ class ControlLoop:
                         rint(q, out=q)
                         multiply(q, res_, out=q)
                     if draws is not None:
-                        add(q, draws.next(std), out=q)
+                        add(q, draws.next(), out=q)
                     if noise is not None:
                         q += noise.sample()
                     if alpha > 0.0:
@@ -293,10 +293,8 @@ class ControlLoop:
                         ctrl[arm_u] = tau
                     else:
                         pending.append((k + latency, np.array(tau)))
-                if pending and pending[0][0] <= k:
+                while pending and pending[0][0] <= k:
                     ctrl[arm_u] = pending.popleft()[1]
-                    while pending and pending[0][0] <= k:
-                        ctrl[arm_u] = pending.popleft()[1]
                 step(m, d)
                 if tape is not None:
                     tape.record()
@@ -481,20 +479,20 @@ def _split(hook: Hook | Measured | None, robot: Robot, d: mujoco.MjData, rows: i
 
 
 class _Draws:
-    """The encoders' noise, drawn from the loop's generator :data:`DRAW_CHUNK` ticks at a time and handed out a
-    tick's row at a time, across the loop's runs: the same numbers, in the same order, as one draw of six per tick
-    (``Generator.normal`` fills an array in the order single draws would come), for a tenth of the calls."""
+    """The encoders' noise (standard deviation ``std_rad``, rad), drawn from the loop's generator :data:`DRAW_CHUNK`
+    ticks at a time and handed out a tick's row at a time, across the loop's runs: the same numbers, in the same
+    order, as one draw of six per tick (``Generator.normal`` fills an array in the order single draws would come),
+    for a tenth of the calls."""
 
-    def __init__(self, rng: np.random.Generator) -> None:
-        self._rng = rng
+    def __init__(self, rng: np.random.Generator, std_rad: float) -> None:
+        self._rng, self._std = rng, std_rad
         self._rows = np.empty((0, N_ARM))
-        self._std = math.nan
         self._i = 0
 
-    def next(self, std: float) -> np.ndarray:
-        """The next tick's noise (6,) (rad) of standard deviation ``std`` (rad); valid until the next call."""
-        if self._i == len(self._rows) or std != self._std:
-            self._rows, self._std, self._i = self._rng.normal(0.0, std, (DRAW_CHUNK, N_ARM)), std, 0
+    def next(self) -> np.ndarray:
+        """The next tick's noise (6,) (rad); valid until the next call."""
+        if self._i == len(self._rows):
+            self._rows, self._i = self._rng.normal(0.0, self._std, (DRAW_CHUNK, N_ARM)), 0
         row = self._rows[self._i]
         self._i += 1
         return row

@@ -116,6 +116,12 @@ class CameraConfig:
         """Focal length (px), the same along both image axes (square pixels)."""
         return 0.5 * self.height_px / math.tan(0.5 * self.vertical_fov_rad)
 
+    def image_coordinates(self, p_camera: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The pinhole projection :func:`point_cloud` inverts: image coordinates ``u, v`` (px; pixel ``u`` spans
+        ``[u, u + 1)``) of points ``p_camera`` (3, ...) in the camera's frame (m, z along the optical axis, > 0)."""
+        f = self.focal_px
+        return f * p_camera[0] / p_camera[2] + self.width_px / 2, f * p_camera[1] / p_camera[2] + self.height_px / 2
+
     @property
     def R_world_camera(self) -> np.ndarray:
         """The camera's axes in the world (3, 3): columns right, down, forward (the image's x, y and depth)."""
@@ -159,6 +165,11 @@ class ImageCrop:
     v0: int
     width: int
     height: int
+
+    @classmethod
+    def full(cls, config: CameraConfig) -> ImageCrop:
+        """The whole of ``config``'s image."""
+        return cls(0, 0, config.width_px, config.height_px)
 
     @classmethod
     def around(cls, u_lo: float, u_hi: float, v_lo: float, v_hi: float, config: CameraConfig,
@@ -241,7 +252,6 @@ class DepthCamera:
         if not all(hasattr(self._renderer, a) for a in ("_gl_context", "_mjr_context")):  # (:meth:`_render`)
             raise RenderError(f"mujoco {mujoco.__version__}'s Renderer has no _gl_context and _mjr_context, "
                               "through which the depth camera renders (mujoco 3.3 to 4.x have them)")
-        self._renderer.enable_depth_rendering()
         self._cam = _free_camera(c)
 
     def _render(self, data: mujoco.MjData, camera: mujoco.MjvCamera, option: mujoco.MjvOption, depth: bool = True,
@@ -435,7 +445,7 @@ def point_cloud(depth_m: np.ndarray, config: CameraConfig, pixels: np.ndarray | 
     z = np.asarray(depth_m, dtype=float)
     h, w = z.shape
     if crop is None:
-        crop = ImageCrop(0, 0, config.width_px, config.height_px)
+        crop = ImageCrop.full(config)
     else:
         crop.check(config)
     if (h, w) != (crop.height, crop.width):

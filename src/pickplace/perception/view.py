@@ -120,7 +120,7 @@ def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray,
     pixels are ranked first by the cost over every :data:`SHORTLIST_EVERY`-th pixel of the region, and the
     :data:`SHORTLIST` best of that estimate are evaluated on all of them: on the 80 looks against the hand of
     realistic episodes 0-5 the estimate's best was the exact search's every time, and the result equals that of
-    evaluating all 441 exactly (``tests/test_camera.py`` compares the two on noisy images). (A coarser whole-pixel
+    evaluating all 441 exactly (``tests/test_profile.py`` compares the two on noisy images). (A coarser whole-pixel
     search, every other shift and then a descent, was tried: the cost can have two minima a pixel or two apart,
     and it found the other one. A shortlist of the tenth pixels changed 5 of those 80 results even at 8 of 121:
     their costs are too close for an estimate.)
@@ -152,14 +152,13 @@ def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray,
     framed = np.zeros((h + 2 * pad, w + 2 * pad))
     framed[pad:pad + h, pad:pad + w] = measured
     flat, row = framed.ravel(), w + 2 * pad
-    uu, vv, zm = u, v, z_model
 
     def costs(shifts: np.ndarray, every: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """The median absolute residual (m) and the median residual dz (m) at each shift (k, 2) (du, dv) (px);
         inf where fewer than half of the region's pixels are valid. Over every ``every``-th pixel of the region
         only, if ``every`` > 1 (an estimate)."""
         du, dv = shifts[:, :1], shifts[:, 1:]
-        us, vs, zs = (uu, vv, zm) if every == 1 else (uu[::every], vv[::every], zm[::every])
+        us, vs, zs = (u, v, z_model) if every == 1 else (u[::every], v[::every], z_model[::every])
         if np.all(shifts == np.round(shifts)):
             z = flat[(vs + pad) * row + us + pad + (dv * row + du).astype(int)]
         else:
@@ -267,12 +266,12 @@ class TableCamera:
         ``v0:v1`` (px), or None when it holds no pixel."""
         c = self.config
         centre = T_world_object.act(self._centre_local)
-        x, y, z = c.R_world_camera.T @ (centre - np.asarray(c.position_m))
+        p = c.R_world_camera.T @ (centre - np.asarray(c.position_m))
+        z = float(p[2])
         if z <= c.min_range_m:
             return None
-        f = c.focal_px
-        u, v = f * x / z + c.width_px / 2, f * y / z + c.height_px / 2
-        r = 2 * self._radius_m * f / z + MASK_MARGIN_PX
+        u, v = c.image_coordinates(p)
+        r = 2 * self._radius_m * c.focal_px / z + MASK_MARGIN_PX
         u0, u1 = max(0, int(u - r)), min(c.width_px, max(0, int(u + r) + 1))
         v0, v1 = max(0, int(v - r)), min(c.height_px, max(0, int(v + r) + 1))
         return (u0, u1, v0, v1) if u0 < u1 and v0 < v1 else None
@@ -288,9 +287,7 @@ class TableCamera:
             [[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]).T
         if np.any(corners[2] <= c.min_range_m):
             return None
-        f = c.focal_px
-        u = f * corners[0] / corners[2] + c.width_px / 2
-        v = f * corners[1] / corners[2] + c.height_px / 2
+        u, v = c.image_coordinates(corners)
         return float(u.min()), float(u.max()), float(v.min()), float(v.max())
 
     def _look(self, d: mujoco.MjData, near: pin.SE3 | None,
@@ -309,7 +306,7 @@ class TableCamera:
             if from_hand:
                 bounds = self._hand_bounds(d)
                 crop = None if bounds is None else crop.union(ImageCrop.around(*bounds, c, CROP_MARGIN_PX))
-        frame = crop if crop is not None else ImageCrop(0, 0, c.width_px, c.height_px)
+        frame = crop if crop is not None else ImageCrop.full(c)
         window = np.zeros((frame.height, frame.width), dtype=bool)
         if rect is not None:
             u0, u1, v0, v1 = rect

@@ -380,7 +380,6 @@ class SensorObserver:
         self._tcp = h.tcp_site
         self._hand = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "gripper_base")
         self._hand_acc, self._hand_vel = np.zeros(6), np.zeros(6)  # the hand's motion (_read_hand_motion)
-        self._gripper_actuator = int(robot.handles.gripper_actuator)
         self._hand_mass = float(m.body_subtreemass[self._hand])
         self._gripper = gripper.GripperGeometry.measure(robot)  # its pads, for the grasp model's contacts
         self._pads_around_m = float(np.max(robot.scene.object.geometry().extent_m)) / 2 + PADS_AROUND_M
@@ -550,10 +549,13 @@ class SensorObserver:
         self._mass = None
         self._checks = []
 
+    def grip_force(self) -> float:
+        """The gripper's force (its actuator's); 0 when it pulls the pads open (N)."""
+        return max(0.0, float(self.d.actuator_force[self.robot.handles.gripper_actuator]))
+
     def pad_forces(self) -> np.ndarray:
-        """The gripper's force (its actuator's), half on each pad; 0 when it pulls them open (N)."""
-        f = float(self.d.actuator_force[self.robot.handles.gripper_actuator])
-        return np.full(2, max(0.0, f) / 2.0)
+        """The gripper's force (:meth:`grip_force`), half on each pad (N)."""
+        return np.full(2, self.grip_force() / 2.0)
 
     def pad_contacts(self) -> list[Contact]:
         """One soft contact at the middle of each pad's face, on the object (the grasp model's)."""
@@ -611,8 +613,7 @@ class SensorObserver:
         f, a = self._wrist()
         load = f - self._tare - self._hand_mass * (self._g + a)
         a_object = self._hand_acceleration_z(self.object_position()) if self._T_tcp_object is not None else a
-        grip = max(0.0, float(self.d.actuator_force[self._gripper_actuator]))  # pad_forces().sum(), exactly
-        self._sample_t, self._sample = t, (grip, load, self._g + a_object)
+        self._sample_t, self._sample = t, (self.grip_force(), load, self._g + a_object)
         return self._sample
 
     def airborne(self, z0_m: float, mass_kg: float) -> bool:
