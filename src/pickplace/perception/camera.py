@@ -215,6 +215,25 @@ def _free_camera(c: CameraConfig) -> mujoco.MjvCamera:
     return cam
 
 
+def _finite_planes(m: mujoco.MjModel, c: CameraConfig, margin_m: float = 1.0) -> None:
+    """Draw the model's infinite planes (the floor) as finite squares of two by two quads, each large enough to
+    hold every point of it within the sensor's range (:attr:`CameraConfig.max_range_m`) of the camera, or of a
+    camera up to ``margin_m`` from it (its calibration error); farther, a pixel is missing anyway.
+
+    Planes of the world body only (their pose is the model's). MuJoCo draws an infinite plane as a grid of up to
+    200 x 200 quads around the viewer, for its lighting and texture; a depth image needs neither, and on a software
+    OpenGL the grid was half the cost of a small image (0.7 of 1.4 ms for 256 x 144 px, Mesa llvmpipe). Only the
+    planes' size changes, in the camera's own model; their depths changed by at most 0.5 um (float32 rounding of
+    other triangles).
+    """
+    for g in np.flatnonzero((m.geom_type == mujoco.mjtGeom.mjGEOM_PLANE) & (m.geom_bodyid == 0)):  # (world frame)
+        if m.geom_size[g, 0] > 0.0 and m.geom_size[g, 1] > 0.0:
+            continue
+        # in whole metres: cameras a calibration error apart draw the same quads (the same depths to the bit)
+        reach = math.ceil(float(np.linalg.norm(np.subtract(c.position_m, m.geom_pos[g]))) + c.max_range_m + margin_m)
+        m.geom_size[g] = (reach, reach, reach)  # (the third: the spacing of its grid lines)
+
+
 class DepthCamera:
     """Renders depth images of a simulation from a :class:`CameraConfig`.
 
@@ -238,6 +257,7 @@ class DepthCamera:
         # segmentation images came out the same to the bit with either setting). test_camera holds each pixel's
         # depth to the ray cast through its centre.
         self._m.vis.quality.offsamples = 0
+        _finite_planes(self._m, c)
         # what a sensor sees: every body's geoms of the visible groups, but not the markers that only exist for
         # the viewer (geoms that collide with nothing and are not the robot's visual meshes); the object's geoms
         # go to their own group, so that the robot's own view of the scene can leave them out (hide_object)
