@@ -78,7 +78,12 @@ CROP_MARGIN_PX = 16
 #: :func:`register_offset` evaluates every whole-pixel shift on every :data:`SHORTLIST_EVERY`-th pixel of the
 #: region, then the :data:`SHORTLIST` shifts that estimate puts lowest on every pixel.
 SHORTLIST = 24
-SHORTLIST_EVERY = 4
+SHORTLIST_EVERY = 8
+#: :func:`register_offset`'s stages: (step (px), span (steps either side)); each stage's grid is centred on the best
+#: shift so far. Whole pixels over the search range, then halves, fifths and tenths: every tenth of a pixel within
+#: half a pixel of the best half pixel is reachable, as on an 11 x 11 grid of tenths, for 43 evaluations instead of
+#: 130.
+STAGES = ((1.0, None), (0.5, 1), (0.2, 2), (0.1, 1))
 
 
 def _masked_median(values: np.ndarray, ok: np.ndarray) -> np.ndarray:
@@ -115,15 +120,21 @@ def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray,
     background fix the shift; its surfaces fix the depth. Locally, that is a displacement of the points by
     ``R_world_camera @ (du z / f, dv z / f, dz)`` (z the region's median depth, f the focal length).
 
-    Every shift of a stage is evaluated (all whole pixels of the range; then 3 x 3 half and 11 x 11 tenth
-    pixels around the best so far), the costs of a stage's shifts together (:func:`_masked_median`). The whole
-    pixels are ranked first by the cost over every :data:`SHORTLIST_EVERY`-th pixel of the region, and the
-    :data:`SHORTLIST` best of that estimate are evaluated on all of them: on the 80 looks against the hand of
-    realistic episodes 0-5 the estimate's best was the exact search's every time, and the result equals that of
-    evaluating all 441 exactly (``tests/test_profile.py`` compares the two on noisy images). (A coarser whole-pixel
-    search, every other shift and then a descent, was tried: the cost can have two minima a pixel or two apart,
-    and it found the other one. A shortlist of the tenth pixels changed 5 of those 80 results even at 8 of 121:
-    their costs are too close for an estimate.)
+    The search runs in :data:`STAGES`: every whole pixel of the range, then 3 x 3 halves, 5 x 5 fifths and 3 x 3
+    tenths of a pixel, each around the best so far; the costs of a stage's shifts are computed together
+    (:func:`_masked_median`). The whole pixels are ranked first by the cost over every :data:`SHORTLIST_EVERY`-th
+    pixel of the region, and the :data:`SHORTLIST` best of that estimate are evaluated on all of them.
+
+    Measured on the 134 looks against the hand of realistic episodes 0-9 (their images recorded), against the
+    displacement that each episode's true calibration error gives the model's points: the error is 0.85 mm median,
+    0.96 mm mean, 1.83 mm p95, the same as the exhaustive search's (every whole pixel exactly, then 3 x 3 halves and
+    11 x 11 tenths: 0.85, 0.97 and 1.83 mm), in 15 ms a look against its 72 ms (and 41 ms for this search with every
+    4th pixel's estimate and all 11 x 11 tenths). The estimate's whole pixel was the exhaustive search's in all 134
+    (also on every 16th pixel); the final shift was in 129 (to 1e-9 px; the others within 0.8 px). The
+    cost of the shifts near the best is flat and can have two minima a pixel or two apart (a descent from a coarser
+    grid of whole pixels found the other one), so the whole pixels are all estimated; the tenths differ from the
+    exhaustive search's where two of them cost nearly the same (``tests/test_profile.py`` holds both to the true
+    displacement).
 
     The three images may be the same crop of the camera's images (an image shift is the same in a crop);
     beyond the images' edges the measured image counts as missing.
@@ -182,8 +193,8 @@ def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray,
 
     # every whole pixel of the range, then half and tenth pixels around the best
     best = (np.inf, 0.0, np.zeros(2))
-    for step, span in ((1.0, max_shift_px), (0.5, 1), (0.1, 5)):
-        shifts = grid(best[2], step, span)
+    for step, span in STAGES:
+        shifts = grid(best[2], step, max_shift_px if span is None else span)
         if step == 1.0 and len(shifts) > SHORTLIST:  # the whole pixels: a shortlist by an estimate, then exactly
             estimate, _ = costs(shifts, SHORTLIST_EVERY)
             shifts = shifts[np.sort(np.argsort(estimate, kind="stable")[:SHORTLIST])]
