@@ -120,6 +120,25 @@ def test_held_cube_pushed_into_the_table(robot: model.Robot, configs: GraspConfi
     assert placing.is_valid(q)
 
 
+def test_the_carried_object_keeps_the_margin_not_twice_it(robot: model.Robot, configs: GraspConfigurations) -> None:
+    """The held cube over the table (its contact with the table not allowed), a 10 mm margin: 15 mm above the table
+    is valid, 5 mm is not; with a 4 mm table margin, 5 mm is valid. Each counted pair of geoms has one margin,
+    whatever rule MuJoCo combines two geoms' margins by (MuJoCo 4 adds them: a margin on the object as well as on
+    the table kept it 20 mm away)."""
+    rel = configs.targets.T_tcp_object
+    place = configs.targets.place
+    heights = {}
+    for above_m in (0.015, 0.005):  # the cube's bottom above the table (it hangs 1 mm above it at the place target)
+        raised = pin.SE3(place.rotation, place.translation + np.array([0.0, 0.0, above_m - 0.001]))
+        heights[above_m] = solve_ik(robot, raised, configs.place.q, "raised place").q
+    for table_margin_m, valid in ((None, {0.015: True, 0.005: False}), (0.004, {0.015: True, 0.005: True})):
+        checker = CollisionChecker(robot, CollisionPolicy(margin_m=0.01, object_held=True, allow_object_table=False,
+                                                          table_margin_m=table_margin_m,
+                                                          finger_m=configs.held_finger_m), T_tcp_object=rel)
+        for above_m, q in heights.items():
+            assert checker.is_valid(q) == valid[above_m], (table_margin_m, above_m, checker.colliding_pairs(q))
+
+
 def test_table_margin_keeps_the_cushion_from_walls_only(robot: model.Robot) -> None:
     """``table_margin_m`` = 0 with a 10 mm margin: finger tips 4 mm above the table pass, the table counts at
     contact only (the robot geoms still keep the margin from everything else)."""

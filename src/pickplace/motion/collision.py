@@ -349,14 +349,15 @@ class _ModelFamily:
         active = (m.geom_contype | m.geom_conaffinity) != 0  # visual geoms stay out
         m.geom_contype[active] = cls[active]
         m.geom_conaffinity[active] = [affinity[int(c)] for c in cls[active]]
-        # MuJoCo uses the larger margin of a pair: margins on the environment (and on the carried object) keep
-        # the robot clear of them, while robot self-collision is checked at actual contact (adjacent housings
-        # of the UR5e sit closer than any useful margin).
+        # The margins sit on the environment and the table only: they keep the robot and the carried object clear
+        # of them, while robot self-collision, and the arm against the object it carries, are checked at actual
+        # contact (adjacent housings of the UR5e sit closer than any useful margin). Every counted pair then has at
+        # most one geom with a margin, so its margin is that one whatever rule combines a pair's two margins:
+        # MuJoCo 4 adds them (older versions took the larger), and a margin on the carried object as well kept it
+        # twice the margin from walls and table (tests/test_collision.py).
         m.geom_margin[:] = 0.0
         m.geom_margin[cls == ENV] = policy.margin_m
         m.geom_margin[cls == TABLE] = policy.margin_m if policy.table_margin_m is None else policy.table_margin_m
-        if policy.object_held:
-            m.geom_margin[cls == OBJ] = policy.margin_m
         # The broad phase works on bodies: it filters body pairs by the OR of their geoms' bits and pads each
         # body's bounds by its largest geom margin, both computed at compile time, so they are redone here.
         _body_bits(m, m.geom_contype, m.geom_conaffinity)
