@@ -17,7 +17,11 @@ realistic profile, :mod:`pickplace.task.profile`; ``stack``: a three-object stac
 
 Reported per case, best of the rounds: closed-loop and replay wall time, their ratio, the simulated time and
 the real-time factor of the whole episode, planning included (the figure ``pickplace run`` reports: simulated
-time over the wall time from the first phase to the end; ``end_to_end`` also counts building the model).
+time over the wall time from the first phase to the end; ``end_to_end`` also counts building the model). The
+realistic profile's cameras work inside its loops: their time (``camera_s``: rendering and the robot's image
+processing) and, of it, the renders alone (``render_s``: what a simulator spends on a camera, the images being
+part of what it simulates) are reported too, with the ratio without the cameras and the ratio against the replay
+plus those renders (``ratio_renders_as_simulation``).
 
 Usage: ``python benchmarks/loop.py [--json] [--repeats R] [--cases default,obstacle,realistic,stack]``.
 """
@@ -41,6 +45,7 @@ from pickplace.eval.bench import machine_info
 from pickplace.motion import control as control_module
 from pickplace.motion import loop as loop_module
 from pickplace.motion.loop import ControlLoop
+from pickplace.perception.camera import DepthCamera
 from pickplace.perception.obstacles import ObstacleCamera
 from pickplace.task.episode import EpisodeConfig, EpisodeResult, run_episode
 from pickplace.task.observe import SensorObserver
@@ -153,13 +158,17 @@ def loop_timer(clock: Callable[[], float] = time.perf_counter) -> Iterator[list[
     ahead). The second element adds up the part of it spent in the realistic profile's cameras: the table camera's
     re-checks of the resting object (rendering and pose fitting, :class:`~pickplace.task.observe.SensorObserver`) and
     the obstacle camera's looks for the trajectory predictor's believed world
-    (:class:`~pickplace.perception.obstacles.ObstacleCamera`)."""
-    total = [0.0, 0.0]
+    (:class:`~pickplace.perception.obstacles.ObstacleCamera`); the third, the part of that spent rendering the
+    images (OpenGL: :meth:`DepthCamera._render <pickplace.perception.camera.DepthCamera._render>`, which a
+    simulator would spend on its camera however the robot's software used the images)."""
+    total = [0.0, 0.0, 0.0]
     depth = [0]
     saved = [(ControlLoop, "run"), (ControlLoop, "run_servo"), (control_module, "servo_setpoints")]
     originals = [getattr(owner, name) for owner, name in saved]
     cameras = [(SensorObserver, "_recheck"), (ObstacleCamera, "columns")]
     camera_originals = [getattr(owner, name) for owner, name in cameras]
+    renders = [(DepthCamera, "_render")]
+    render_originals = [getattr(owner, name) for owner, name in renders]
 
     def timed(f: Callable[..., Any]) -> Callable[..., Any]:
         def wrapper(*args: Any, **kwargs: Any) -> Any:
@@ -184,14 +193,28 @@ def loop_timer(clock: Callable[[], float] = time.perf_counter) -> Iterator[list[
 
         return wrapper
 
+    def render(f: Callable[..., Any]) -> Callable[..., Any]:
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
+            t0 = clock()
+            try:
+                return f(*args, **kwargs)
+            finally:
+                if depth[0]:
+                    total[2] += clock() - t0
+
+        return wrapper
+
     for (owner, name), f in zip(saved, originals, strict=True):
         setattr(owner, name, timed(f))
     for (owner, name), f in zip(cameras, camera_originals, strict=True):
         setattr(owner, name, camera(f))
+    for (owner, name), f in zip(renders, render_originals, strict=True):
+        setattr(owner, name, render(f))
     try:
         yield total
     finally:
-        for (owner, name), f in zip(saved + cameras, originals + camera_originals, strict=True):
+        for (owner, name), f in zip(saved + cameras + renders, originals + camera_originals + render_originals,
+                                    strict=True):
             setattr(owner, name, f)
 
 
@@ -233,7 +256,8 @@ def _one_round(config: EpisodeConfig, seed: int, tape: Tape, clock: str = "wall"
         wall = time.perf_counter() - t0
     replay_s, _ = replay(tape, CLOCKS[clock])
     sim = _sim_time(result)
-    return {"closed_loop_s": closed[0], "camera_s": closed[1], "replay_s": replay_s, "ratio": closed[0] / replay_s,
+    return {"closed_loop_s": closed[0], "camera_s": closed[1], "render_s": closed[2], "replay_s": replay_s,
+            "ratio": closed[0] / replay_s,
             "episode_wall_s": result.wall_time_s, "real_time_factor": result.real_time_factor,
             "real_time_factor_end_to_end": sim / wall, "success": bool(result.success)}
 
@@ -278,6 +302,7 @@ def run(cases: tuple[str, ...] = CASES, repeats: int = 5, seed: int = 0,
             **facts[c],
             "closed_loop_s": closed, "replay_s": rep, "ratio": closed / rep,
             "camera_s": best["camera_s"], "ratio_without_camera": (closed - best["camera_s"]) / rep,
+            "render_s": best["render_s"], "ratio_renders_as_simulation": closed / (rep + best["render_s"]),
             "ratio_best_round": min(x["ratio"] for x in rs),
             "closed_loop_us_per_step": closed / steps * 1e6, "replay_us_per_step": rep / steps * 1e6,
             "python_us_per_step": (closed - rep) / steps * 1e6,
@@ -297,12 +322,14 @@ def print_table(result: dict[str, Any]) -> None:
     console = Console()
     t = Table(title=f"Closed loop against a bare mj_step replay of the same controls (best of {result['repeats']} "
                     f"interleaved rounds, {result['clock']} clock)")
-    for col in ("case", "steps", "closed loop (s)", "of it camera (s)", "replay (s)", "ratio", "ratio w/o camera",
-                "Python µs/step", "simulated (s)", "episode wall (s)", "real-time factor", "replay identical"):
+    for col in ("case", "steps", "closed loop (s)", "of it camera (s)", "of that rendering (s)", "replay (s)", "ratio",
+                "ratio w/o camera", "ratio, renders as simulation", "Python µs/step", "simulated (s)",
+                "episode wall (s)", "real-time factor", "replay identical"):
         t.add_column(col, justify="left" if col == "case" else "right")
     for name, c in result["cases"].items():
-        t.add_row(name, str(c["steps"]), f"{c['closed_loop_s']:.3f}", f"{c['camera_s']:.3f}", f"{c['replay_s']:.3f}",
-                  f"{c['ratio']:.2f}×", f"{c['ratio_without_camera']:.2f}×", f"{c['python_us_per_step']:.1f}",
+        t.add_row(name, str(c["steps"]), f"{c['closed_loop_s']:.3f}", f"{c['camera_s']:.3f}", f"{c['render_s']:.3f}",
+                  f"{c['replay_s']:.3f}", f"{c['ratio']:.2f}×", f"{c['ratio_without_camera']:.2f}×",
+                  f"{c['ratio_renders_as_simulation']:.2f}×", f"{c['python_us_per_step']:.1f}",
                   f"{c['simulated_s']:.2f}", f"{c['episode_wall_s']:.3f}", f"{c['real_time_factor']:.1f}×",
                   "yes" if c["replay_identical"] else "NO")
     console.print(t)
