@@ -258,3 +258,40 @@ def test_each_pixel_is_the_depth_along_its_own_ray(robot: Robot, exact) -> None:
     assert len(flat) > 2000
     assert max(flat) < 1e-4
     assert max(curved, default=0.0) < 1.5e-3
+
+
+def test_cameras_share_their_threads_opengl_context(robot: Robot, exact) -> None:
+    """Cameras made in one thread render on one OpenGL context (each with its own MuJoCo render context): closing
+    one leaves the others' images as they were; a camera in another thread gets that thread's own context and
+    renders the same image."""
+    import threading
+
+    from pickplace.perception.render import shared_gl_context
+
+    depth, _ = exact
+    d = robot.make_data()
+    mujoco.mj_forward(robot.mj, d)
+    first, second = DepthCamera(robot), DepthCamera(robot, CameraConfig(width_px=424, height_px=240))
+    try:
+        assert first._gl is second._gl is shared_gl_context()[0]
+        small = second.render_depth(d)
+        first.close()
+        np.testing.assert_array_equal(second.render_depth(d), small)
+        with pytest.raises(RuntimeError, match="after close"):
+            first.render_depth(d)
+    finally:
+        second.close()
+    seen: dict[str, object] = {}
+
+    def elsewhere() -> None:
+        camera = DepthCamera(robot)
+        try:
+            seen["context"], seen["depth"] = camera._gl, camera.render_depth(d)
+        finally:
+            camera.close()
+
+    thread = threading.Thread(target=elsewhere)
+    thread.start()
+    thread.join()
+    assert seen["context"] is not shared_gl_context()[0]
+    np.testing.assert_array_equal(seen["depth"], depth)

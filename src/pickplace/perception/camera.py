@@ -29,7 +29,7 @@ import numpy as np
 import pinocchio as pin
 
 from pickplace.errors import ConfigError
-from pickplace.perception.render import RenderError, make_renderer
+from pickplace.perception.render import GL_HINT, RenderError, check_size, shared_gl_context
 from pickplace.robot.model import Robot
 from pickplace.world.config import check_int, check_range, check_vector
 
@@ -39,6 +39,9 @@ from pickplace.world.config import check_int, check_range, check_vector
 _D435_VFOV_RAD = math.radians(58.0)
 #: Geom groups of the camera's private model copy: the object's geoms, and markers a sensor cannot see.
 _OBJECT_GROUP, _HIDDEN_GROUP = 4, 5
+#: Room in a camera's scene beyond one entry per geom of the model, for what MuJoCo adds to a scene (the camera's
+#: options show no frames, contacts or other decorations).
+_DECOR_GEOMS = 100
 
 
 @dataclass(frozen=True)
@@ -242,8 +245,7 @@ class DepthCamera:
         config: The camera.
 
     Raises:
-        RenderError: no OpenGL context, an image larger than the model's offscreen buffer, or a mujoco whose
-            ``Renderer`` does not expose its render contexts.
+        RenderError: no OpenGL context, or an image larger than the model's offscreen buffer.
     """
 
     def __init__(self, robot: Robot, config: CameraConfig | None = None) -> None:
@@ -274,10 +276,18 @@ class DepthCamera:
         self._known = mujoco.MjvOption()
         self._known.geomgroup[:] = self._seen.geomgroup
         self._known.geomgroup[_OBJECT_GROUP] = 0
-        self._renderer, self.backend = make_renderer(self._m, c.width_px, c.height_px)
-        if not all(hasattr(self._renderer, a) for a in ("_gl_context", "_mjr_context")):  # (:meth:`_render`)
-            raise RenderError(f"mujoco {mujoco.__version__}'s Renderer has no _gl_context and _mjr_context, "
-                              "through which the depth camera renders (mujoco 3.3 to 4.x have them)")
+        # MuJoCo's scene and render context, on the thread's shared OpenGL context (render.shared_gl_context: a
+        # context of its own cost 10-20 times as much to make); no text is drawn, so the smallest font
+        check_size(m, c.width_px, c.height_px)
+        self._gl, self.backend = shared_gl_context()
+        self._scene = mujoco.MjvScene(m, maxgeom=m.ngeom + _DECOR_GEOMS)
+        self._gl.make_current()
+        try:
+            self._ctx: mujoco.MjrContext | None = mujoco.MjrContext(m, mujoco.mjtFontScale.mjFONTSCALE_50)
+        except Exception as exc:  # an OpenGL error
+            raise RenderError(f"cannot make MuJoCo's render context on the {self.backend} backend "
+                              f"({type(exc).__name__}: {exc}); {GL_HINT}") from exc
+        self._ctx.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR  # (the depth mapping _metric undoes)
         self._cam = _free_camera(c)
 
     def _render(self, data: mujoco.MjData, camera: mujoco.MjvCamera, option: mujoco.MjvOption, depth: bool = True,
@@ -290,8 +300,7 @@ class DepthCamera:
         What ``mujoco.Renderer.render`` does in its depth and its segmentation modes (both render with the
         segmentation flags: the same image), with both buffers read at once: MuJoCo's depth buffer converted to
         metric depth as it converts it (float32 as it returns it), and the segmentation colours (the scene's geom
-        index plus one) looked up in a table of the scene's geoms. Uses the renderer's OpenGL and MuJoCo render
-        contexts (``_gl_context``, ``_mjr_context``: the mujoco 3.x-4.x ``Renderer``'s).
+        index plus one) looked up in a table of the scene's geoms.
 
         A crop is rendered on its own (:meth:`_narrow`): a viewport of its size and the part of the camera's
         frustum that its pixels see, so that each of its pixels is the full image's pixel there (the same ray;
@@ -300,20 +309,19 @@ class DepthCamera:
         then a pixel whose centre lies on a silhouette's edge shows the other side, or a steep surface's depth
         differs by microns (a handful of pixels in an image).
         """
-        r = self._renderer
-        r.update_scene(data, camera=camera, scene_option=option)
-        scene, ctx = r.scene, r._mjr_context
+        scene, ctx, c = self._scene, self._ctx, self.config
         if ctx is None:
             raise RuntimeError("render cannot be called after close")
-        if crop is not None and (crop.width, crop.height) == (r.width, r.height):
+        mujoco.mjv_updateScene(self._m, data, option, None, camera, mujoco.mjtCatBit.mjCAT_ALL, scene)
+        if crop is not None and (crop.width, crop.height) == (c.width_px, c.height_px):
             crop = None  # the full frame
         if crop is not None:
-            crop.check(self.config)
+            crop.check(c)
             self._narrow(scene, crop)
-        w, h = (r.width, r.height) if crop is None else (crop.width, crop.height)
+        w, h = (c.width_px, c.height_px) if crop is None else (crop.width, crop.height)
         rect = mujoco.MjrRect(0, 0, w, h)
-        if r._gl_context is not None:
-            r._gl_context.make_current()
+        self._gl.make_current()
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, ctx)  # (this context's, on the shared one)
         flags = scene.flags.copy()
         scene.flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = True
         scene.flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = True
@@ -421,8 +429,11 @@ class DepthCamera:
         return z, mask
 
     def close(self) -> None:
-        """Release the OpenGL context."""
-        self._renderer.close()
+        """Release MuJoCo's render context (its buffers on the shared OpenGL context)."""
+        if self._ctx is not None:
+            self._gl.make_current()
+            self._ctx.free()
+            self._ctx = None
 
 
 def sensor_depth(depth_m: np.ndarray, config: CameraConfig, rng: np.random.Generator) -> np.ndarray:

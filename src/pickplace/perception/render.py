@@ -8,8 +8,8 @@ creates the renderer on an EGL context (Mesa's libEGL renders on the CPU) and se
 child processes. Any other failure to get a context raises :class:`RenderError` saying what to set. Setting
 ``MUJOCO_GL=egl`` before starting Python remains the most predictable choice.
 
-Used by the depth camera (:mod:`pickplace.perception.camera`) and the episode video
-(:mod:`pickplace.eval.report`).
+Used by the depth camera (:mod:`pickplace.perception.camera`, on the thread's shared context:
+:func:`shared_gl_context`) and the episode video (:mod:`pickplace.eval.report`, :func:`make_renderer`).
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ import os
 import platform
 import threading
 from collections.abc import Iterator
+from typing import Any
 
 import mujoco
 
@@ -87,16 +88,56 @@ def _gl_backend() -> Iterator[str]:
             gl_context.GLContext = active
 
 
+def check_size(m: mujoco.MjModel, width: int, height: int) -> None:
+    """Raise :class:`RenderError` if ``width`` x ``height`` px exceeds the model's offscreen buffer."""
+    if width > m.vis.global_.offwidth or height > m.vis.global_.offheight:
+        raise RenderError(f"{width}x{height} px exceeds the model's offscreen buffer "
+                          f"{m.vis.global_.offwidth}x{m.vis.global_.offheight} px (<visual><global offwidth "
+                          f"offheight> in scene.xml); render smaller")
+
+
+_THREAD = threading.local()
+#: Size of the shared contexts' own framebuffer (px; a hidden window with GLFW, a buffer with OSMesa, none with EGL):
+#: nothing is drawn into it, the cameras render into their MuJoCo render contexts' offscreen buffers.
+_SHARED_SIZE_PX = 64
+
+
+def shared_gl_context() -> tuple[Any, str]:
+    """This thread's OpenGL context for offscreen rendering, made on the first call in the thread and kept for the
+    thread's life, and its backend's name (a backend that works here, as for :func:`make_renderer`).
+
+    A camera makes only its MuJoCo render context (``mujoco.MjrContext``) on it and renders into that context's
+    offscreen buffer. A new OpenGL context is what made a renderer costly on a software OpenGL: a
+    ``mujoco.Renderer`` took 140-280 ms to make, its render context 12 ms of that on a context already in use (Mesa
+    llvmpipe), and an episode of the realistic profile made two. Contexts are per thread (an OpenGL context is
+    current in one thread at a time) and per process (a child forked after the context was made makes its own).
+
+    Raises:
+        RenderError: no OpenGL context can be made.
+    """
+    made = getattr(_THREAD, "context", None)
+    if made is None or _THREAD.pid != os.getpid():  # (a process forked from one that had made it: not usable here)
+        from mujoco.rendering.classic import gl_context  # (_gl_backend checked that it imports)
+
+        with _gl_backend() as backend:
+            try:
+                context = gl_context.GLContext(_SHARED_SIZE_PX, _SHARED_SIZE_PX)
+                context.make_current()
+            except Exception as exc:  # GLFW/EGL/OSMesa failures come as ImportError, FatalError, GLError, ...
+                raise RenderError(f"cannot create an OpenGL context with the {backend} backend "
+                                  f"({type(exc).__name__}: {exc}); {GL_HINT}") from exc
+        made = _THREAD.context = (context, backend)
+        _THREAD.pid = os.getpid()
+    return made
+
+
 def make_renderer(m: mujoco.MjModel, width: int, height: int) -> tuple[mujoco.Renderer, str]:
     """A ``mujoco.Renderer`` of ``width`` x ``height`` px on a working OpenGL backend, and the backend's name.
 
     Raises:
         RenderError: the size exceeds the model's offscreen buffer, or no OpenGL context can be made.
     """
-    if width > m.vis.global_.offwidth or height > m.vis.global_.offheight:
-        raise RenderError(f"{width}x{height} px exceeds the model's offscreen buffer "
-                          f"{m.vis.global_.offwidth}x{m.vis.global_.offheight} px (<visual><global offwidth "
-                          f"offheight> in scene.xml); render smaller")
+    check_size(m, width, height)
     with _gl_backend() as backend:
         try:
             return mujoco.Renderer(m, height=height, width=width), backend
@@ -105,4 +146,4 @@ def make_renderer(m: mujoco.MjModel, width: int, height: int) -> tuple[mujoco.Re
                               f"({type(exc).__name__}: {exc}); {GL_HINT}") from exc
 
 
-__all__ = ["GL_HINT", "RenderError", "make_renderer"]
+__all__ = ["GL_HINT", "RenderError", "check_size", "make_renderer", "shared_gl_context"]
