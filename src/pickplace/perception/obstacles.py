@@ -32,6 +32,7 @@ from scipy import ndimage
 
 from pickplace.motion.collision import CollisionChecker, CollisionPolicy
 from pickplace.perception.camera import DepthCamera, point_cloud, sensor_depth
+from pickplace.perception.pose import over_box
 from pickplace.robot import gripper
 from pickplace.robot.model import (
     SEEN_CELL_M,
@@ -133,8 +134,8 @@ class ObstacleCamera:
             # above the table by more than CLEARANCE_SIGMAS times the depth noise at the point's own depth
             depth_m = (cloud - np.asarray(self.config.position_m)) @ self.config.R_world_camera[:, 2]
             clearance_m = CLEARANCE_SIGMAS * self.config.depth_sigma_m(depth_m)
-            keep = ((cloud[:, 2] > self.table_height_m + clearance_m)
-                    & np.all(cloud[:, :2] >= lo, axis=1) & np.all(cloud[:, :2] <= hi, axis=1))
+            keep = cloud[:, 2] > self.table_height_m + clearance_m
+            keep[keep] = over_box(cloud[keep], (lo, hi))
             for centre, radius in exclude:
                 keep &= np.linalg.norm(cloud - centre, axis=1) > radius
             return cloud[keep]

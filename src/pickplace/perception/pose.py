@@ -66,6 +66,14 @@ class PoseEstimate:
     points: int
 
 
+def over_box(points: np.ndarray, box_xy_m: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """Which points (N, 3) (m) lie over the box ``(min (2,), max (2,))`` (m) in x and y, edges included (bool (N,)).
+    Column by column: a quarter of the cost of comparing the (N, 2) block row by row, the same answer."""
+    (x0, y0), (x1, y1) = box_xy_m
+    x, y = points[:, 0], points[:, 1]
+    return (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)
+
+
 def observed_table_height(points: np.ndarray, nominal_m: float, table_box_xy_m: tuple[np.ndarray, np.ndarray],
                           band_m: float = 0.02) -> float:
     """The table top's height as the camera sees it (m): the median height of the points over the table within
@@ -75,10 +83,9 @@ def observed_table_height(points: np.ndarray, nominal_m: float, table_box_xy_m: 
     Raises:
         ObjectNotSeen: no point of the table is seen (the cloud is not of this scene).
     """
-    lo, hi = table_box_xy_m
     z = points[:, 2]
-    near = (np.abs(z - nominal_m) < band_m) & np.all(points[:, :2] >= lo, axis=1) & np.all(points[:, :2] <= hi,
-                                                                                            axis=1)
+    near = np.abs(z - nominal_m) < band_m
+    near[near] = over_box(points[near], table_box_xy_m)
     if not np.any(near):
         raise ObjectNotSeen(f"no point of the table top within {band_m * 1e3:.0f} mm of its height "
                             f"{nominal_m:.3f} m")
@@ -104,10 +111,9 @@ def segment(points: np.ndarray, table_height_m: float, table_box_xy_m: tuple[np.
     Raises:
         ObjectNotSeen: fewer than ``min_points`` are left.
     """
-    lo, hi = table_box_xy_m
     z = points[:, 2] - table_height_m
-    keep = ((z > clearance_m) & (z < max_height_m) & np.all(points[:, :2] >= lo, axis=1)
-            & np.all(points[:, :2] <= hi, axis=1))
+    keep = (z > clearance_m) & (z < max_height_m)
+    keep[keep] = over_box(points[keep], table_box_xy_m)
     above = points[keep]
     if len(above) < min_points:
         raise ObjectNotSeen(f"the camera sees {len(above)} points above the table (at least {min_points} needed)")

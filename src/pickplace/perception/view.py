@@ -62,6 +62,8 @@ log = logging.getLogger(__name__)
 #: Pixels by which the robot's self-filter is widened (its links are rendered from the calibrated camera pose,
 #: which is off by the calibration error: ~0.3 deg, 4 px at 848 x 480).
 MASK_MARGIN_PX = 4
+#: Band around the table top's nominal height within which points are the table seen (m; observed_table_height).
+TABLE_BAND_M = 0.02
 #: Radius around the tcp within which the gripper's points measure the calibration offset (m).
 HAND_RADIUS_M = 0.15
 #: Search radius beyond the object's bounding sphere around where it should be (m).
@@ -243,6 +245,7 @@ class TableCamera:
         self._centre_local = (lo + hi) / 2
         self._radius_m = float(np.linalg.norm(hi - lo)) / 2 + SEARCH_MARGIN_M
         self._reach_m = float(np.max(np.linalg.norm(geo.vertices, axis=1)))  # its farthest point from its origin
+        self._table_crop = self._table_view()
         self.images = 0
         self.wall_s = 0.0
 
@@ -286,6 +289,28 @@ class TableCamera:
         u0, u1 = max(0, int(u - r)), min(c.width_px, max(0, int(u + r) + 1))
         v0, v1 = max(0, int(v - r)), min(c.height_px, max(0, int(v + r) + 1))
         return (u0, u1, v0, v1) if u0 < u1 and v0 < v1 else None
+
+    def _table_view(self) -> ImageCrop | None:
+        """The part of the image that can show a point a look over the whole table uses, or None if the table is
+        not wholly in front of the camera.
+
+        Such a look keeps only points over the table (its ``table_box``) from :data:`TABLE_BAND_M` below the table
+        top up to the object's height (:attr:`tallest_m`) and that band again above it (:func:`observed_table_height`
+        and :func:`segment`, whose table is the one seen, within the band of the nominal one). That box projects
+        inside the bounding rectangle of its corners' projections; a pixel outside it back-projects, at any depth,
+        to a point outside the box. Widened by two pixels. (A look measured against the hand moves its points by
+        the calibration offset first: it uses the whole image.)
+        """
+        c = self.config
+        (x0, y0), (x1, y1) = self.table_box
+        top = self.robot.scene.table_height_m
+        corners = np.array([[x, y, z] for x in (x0, x1) for y in (y0, y1)
+                            for z in (top - TABLE_BAND_M, top + TABLE_BAND_M + self.tallest_m)])
+        p = c.R_world_camera.T @ (corners - np.asarray(c.position_m)).T
+        if np.any(p[2] <= c.min_range_m):
+            return None
+        u, v = c.image_coordinates(p)
+        return ImageCrop.around(float(u.min()), float(u.max()), float(v.min()), float(v.max()), c, 2)
 
     def _hand_bounds(self, d: mujoco.MjData) -> tuple[float, float, float, float] | None:
         """Where the pixels of the robot's own points within :data:`HAND_RADIUS_M` of the tcp can be in the image
@@ -390,9 +415,14 @@ class TableCamera:
                 if from_hand:
                     offset, mask = self._hand_offset(depth, known, own, hand)
                 pixels = ~mask if window is None else ~mask & window
-                clouds.append(point_cloud(depth, self.config, pixels, crop=crop) - offset)
+                if crop is None and not from_hand and self._table_crop is not None:  # only what can show the table
+                    rows, cols = self._table_crop.slices
+                    cloud = point_cloud(depth[rows, cols], self.config, pixels[rows, cols], crop=self._table_crop)
+                else:
+                    cloud = point_cloud(depth, self.config, pixels, crop=crop)
+                clouds.append(cloud - offset)
             cloud = np.concatenate(clouds)
-            table = observed_table_height(cloud, self.robot.scene.table_height_m, self.table_box)
+            table = observed_table_height(cloud, self.robot.scene.table_height_m, self.table_box, TABLE_BAND_M)
             if near is not None:
                 cloud = self._near(cloud, near)
             points = segment(cloud, table, self.table_box, self.clearance_m, self.tallest_m)
