@@ -163,58 +163,36 @@ def loop_timer(clock: Callable[[], float] = time.perf_counter) -> Iterator[list[
     simulator would spend on its camera however the robot's software used the images)."""
     total = [0.0, 0.0, 0.0]
     depth = [0]
-    saved = [(ControlLoop, "run"), (ControlLoop, "run_servo"), (control_module, "servo_setpoints")]
-    originals = [getattr(owner, name) for owner, name in saved]
-    cameras = [(SensorObserver, "_recheck"), (ObstacleCamera, "columns")]
-    camera_originals = [getattr(owner, name) for owner, name in cameras]
-    renders = [(DepthCamera, "_render")]
-    render_originals = [getattr(owner, name) for owner, name in renders]
+    wrapped = {0: [(ControlLoop, "run"), (ControlLoop, "run_servo"), (control_module, "servo_setpoints")],
+               1: [(SensorObserver, "_recheck"), (ObstacleCamera, "columns")],
+               2: [(DepthCamera, "_render")]}
+    originals = {(owner, name): getattr(owner, name) for places in wrapped.values() for owner, name in places}
 
-    def timed(f: Callable[..., Any]) -> Callable[..., Any]:
+    def timed(f: Callable[..., Any], slot: int) -> Callable[..., Any]:
+        """``f``, its time added to ``total[slot]``: always for the loops (slot 0, which counts its depth), inside a
+        loop only for the others."""
         def wrapper(*args: Any, **kwargs: Any) -> Any:
             t0 = clock()
-            depth[0] += 1
+            inside = depth[0] > 0
+            if slot == 0:
+                depth[0] += 1
             try:
                 return f(*args, **kwargs)
             finally:
-                depth[0] -= 1
-                total[0] += clock() - t0
+                if slot == 0:
+                    depth[0] -= 1
+                if slot == 0 or inside:
+                    total[slot] += clock() - t0
 
         return wrapper
 
-    def camera(f: Callable[..., Any]) -> Callable[..., Any]:
-        def wrapper(*args: Any, **kwargs: Any) -> Any:
-            t0 = clock()
-            try:
-                return f(*args, **kwargs)
-            finally:
-                if depth[0]:
-                    total[1] += clock() - t0
-
-        return wrapper
-
-    def render(f: Callable[..., Any]) -> Callable[..., Any]:
-        def wrapper(*args: Any, **kwargs: Any) -> Any:
-            t0 = clock()
-            try:
-                return f(*args, **kwargs)
-            finally:
-                if depth[0]:
-                    total[2] += clock() - t0
-
-        return wrapper
-
-    for (owner, name), f in zip(saved, originals, strict=True):
-        setattr(owner, name, timed(f))
-    for (owner, name), f in zip(cameras, camera_originals, strict=True):
-        setattr(owner, name, camera(f))
-    for (owner, name), f in zip(renders, render_originals, strict=True):
-        setattr(owner, name, render(f))
+    for slot, places in wrapped.items():
+        for owner, name in places:
+            setattr(owner, name, timed(originals[owner, name], slot))
     try:
         yield total
     finally:
-        for (owner, name), f in zip(saved + cameras + renders, originals + camera_originals + render_originals,
-                                    strict=True):
+        for (owner, name), f in originals.items():
             setattr(owner, name, f)
 
 
