@@ -273,7 +273,7 @@ def test_cameras_share_their_threads_opengl_context(robot: Robot, exact) -> None
     mujoco.mj_forward(robot.mj, d)
     first, second = DepthCamera(robot), DepthCamera(robot, CameraConfig(width_px=424, height_px=240))
     try:
-        assert first._gl is second._gl is shared_gl_context()[0]
+        assert first._view.gl is second._view.gl is shared_gl_context()[0]
         small = second.render_depth(d)
         first.close()
         np.testing.assert_array_equal(second.render_depth(d), small)
@@ -286,7 +286,7 @@ def test_cameras_share_their_threads_opengl_context(robot: Robot, exact) -> None
     def elsewhere() -> None:
         camera = DepthCamera(robot)
         try:
-            seen["context"], seen["depth"] = camera._gl, camera.render_depth(d)
+            seen["context"], seen["depth"] = camera._view.gl, camera.render_depth(d)
         finally:
             camera.close()
 

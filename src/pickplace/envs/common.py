@@ -19,7 +19,7 @@ import pinocchio as pin
 from gymnasium import spaces
 
 from pickplace.errors import ConfigError
-from pickplace.perception.render import make_renderer
+from pickplace.perception.render import OffscreenScene
 from pickplace.robot import gripper
 from pickplace.robot.kinematics import rot_z
 from pickplace.robot.model import Robot
@@ -202,7 +202,9 @@ def start_pose(scene: SceneConfig) -> pin.SE3:
 class Views:
     """Offscreen images of a scene through :data:`CAMERA`: a frame for ``render()`` and RGB-D observations.
 
-    Renderers are made on first use (an OpenGL context each) and released by :meth:`close`.
+    Each is rendered by an :class:`~pickplace.perception.render.OffscreenScene` (the images a ``mujoco.Renderer``
+    gives, on the thread's shared OpenGL context: a new scene costs its MuJoCo render context, not an OpenGL
+    context), made on first use and released by :meth:`close`.
 
     Args:
         robot: The models (the scene's MuJoCo model).
@@ -213,37 +215,28 @@ class Views:
     def __init__(self, robot: Robot, render_size_px: tuple[int, int], image_size_px: tuple[int, int]) -> None:
         self.m = robot.mj
         self.render_size_px, self.image_size_px = render_size_px, image_size_px
-        self._frame: mujoco.Renderer | None = None
-        self._image: mujoco.Renderer | None = None
+        self._frame: OffscreenScene | None = None
+        self._image: OffscreenScene | None = None
 
     def frame(self, d: mujoco.MjData) -> np.ndarray:
         """An RGB frame (H, W, 3) uint8 of the simulation as it is."""
         if self._frame is None:
-            self._frame, backend = make_renderer(self.m, *self.render_size_px)
-            log.debug("render(): %dx%d px on %s", *self.render_size_px, backend)
-        self._frame.update_scene(d, camera=CAMERA)
-        return np.array(self._frame.render(), dtype=np.uint8)
+            self._frame = OffscreenScene(self.m, *self.render_size_px)
+            log.debug("render(): %dx%d px on %s", *self.render_size_px, self._frame.backend)
+        return self._frame.rgb(d, CAMERA)
 
     def rgbd(self, d: mujoco.MjData) -> dict[str, np.ndarray]:
         """An RGB image (H, W, 3) uint8 and the depth (H, W) (m, float32) of every pixel."""
         if self._image is None:
-            self._image, _ = make_renderer(self.m, *self.image_size_px)
-        r = self._image
-        r.update_scene(d, camera=CAMERA)
-        rgb = np.array(r.render(), dtype=np.uint8)
-        r.enable_depth_rendering()
-        try:
-            r.update_scene(d, camera=CAMERA)
-            depth = np.clip(np.array(r.render(), dtype=np.float32), 0.0, 100.0)
-        finally:
-            r.disable_depth_rendering()
-        return {"rgb": rgb, "depth": depth}
+            self._image = OffscreenScene(self.m, *self.image_size_px)
+        rgb = self._image.rgb(d, CAMERA)
+        return {"rgb": rgb, "depth": np.clip(self._image.depth(d, CAMERA), 0.0, 100.0)}
 
     def close(self) -> None:
-        """Release the OpenGL contexts."""
-        for r in (self._frame, self._image):
-            if r is not None:
-                r.close()
+        """Release the render contexts."""
+        for view in (self._frame, self._image):
+            if view is not None:
+                view.close()
         self._frame = self._image = None
 
 

@@ -29,7 +29,7 @@ import numpy as np
 import pinocchio as pin
 
 from pickplace.errors import ConfigError
-from pickplace.perception.render import GL_HINT, RenderError, check_size, shared_gl_context
+from pickplace.perception.render import OffscreenScene
 from pickplace.robot.model import Robot
 from pickplace.world.config import check_int, check_range, check_vector
 
@@ -276,18 +276,10 @@ class DepthCamera:
         self._known = mujoco.MjvOption()
         self._known.geomgroup[:] = self._seen.geomgroup
         self._known.geomgroup[_OBJECT_GROUP] = 0
-        # MuJoCo's scene and render context, on the thread's shared OpenGL context (render.shared_gl_context: a
-        # context of its own cost 10-20 times as much to make); no text is drawn, so the smallest font
-        check_size(m, c.width_px, c.height_px)
-        self._gl, self.backend = shared_gl_context()
-        self._scene = mujoco.MjvScene(m, maxgeom=m.ngeom + _DECOR_GEOMS)
-        self._gl.make_current()
-        try:
-            self._ctx: mujoco.MjrContext | None = mujoco.MjrContext(m, mujoco.mjtFontScale.mjFONTSCALE_50)
-        except Exception as exc:  # an OpenGL error
-            raise RenderError(f"cannot make MuJoCo's render context on the {self.backend} backend "
-                              f"({type(exc).__name__}: {exc}); {GL_HINT}") from exc
-        self._ctx.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR  # (the depth mapping _metric undoes)
+        # MuJoCo's scene and render context, on the thread's shared OpenGL context (a context of its own cost 10-20
+        # times as much to make); the camera's options show no frames, contacts or other decorations
+        self._view = OffscreenScene(m, c.width_px, c.height_px, decor_geoms=_DECOR_GEOMS)
+        self.backend = self._view.backend
         self._cam = _free_camera(c)
 
     def _render(self, data: mujoco.MjData, camera: mujoco.MjvCamera, option: mujoco.MjvOption, depth: bool = True,
@@ -309,30 +301,20 @@ class DepthCamera:
         then a pixel whose centre lies on a silhouette's edge shows the other side, or a steep surface's depth
         differs by microns (a handful of pixels in an image).
         """
-        scene, ctx, c = self._scene, self._ctx, self.config
-        if ctx is None:
+        c, view = self.config, self._view
+        if view.context is None:
             raise RuntimeError("render cannot be called after close")
-        mujoco.mjv_updateScene(self._m, data, option, None, camera, mujoco.mjtCatBit.mjCAT_ALL, scene)
+        scene = view.update(data, camera, option)
         if crop is not None and (crop.width, crop.height) == (c.width_px, c.height_px):
             crop = None  # the full frame
         if crop is not None:
             crop.check(c)
             self._narrow(scene, crop)
         w, h = (c.width_px, c.height_px) if crop is None else (crop.width, crop.height)
-        rect = mujoco.MjrRect(0, 0, w, h)
-        self._gl.make_current()
-        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, ctx)  # (this context's, on the shared one)
-        flags = scene.flags.copy()
-        scene.flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = True
-        scene.flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = True
         zbuf = np.empty((h, w), dtype=np.float32) if depth else None
         rgb = np.empty((h, w, 3), dtype=np.uint8) if bodies is not None else None
-        try:
-            mujoco.mjr_render(rect, scene, ctx)
-            mujoco.mjr_readPixels(rgb, zbuf, rect, ctx)
-        finally:
-            np.copyto(scene.flags, flags)
-        z = None if zbuf is None else np.flipud(self._metric(zbuf)).astype(float)
+        view.draw(w, h, segment=True, rgb=rgb, depth=zbuf)
+        z = None if zbuf is None else np.flipud(view.metric_depth(zbuf)).astype(float)
         mask = None
         if rgb is not None:
             assert bodies is not None
@@ -370,18 +352,6 @@ class DepthCamera:
             cam.frustum_center = left + 0.5 * crop.width * pixel
             cam.frustum_bottom = low
             cam.frustum_top = low + crop.height * pixel
-
-    def _metric(self, zbuf: np.ndarray) -> np.ndarray:
-        """MuJoCo's (reversed-Z, perspective) depth buffer (H, W) as metric depth along the optical axis (m),
-        float32, computed as ``mujoco.Renderer.render`` computes it."""
-        m = self._m
-        zfar = np.float32(m.vis.map.zfar * m.stat.extent)
-        znear = np.float32(m.vis.map.znear * m.stat.extent)
-        c_coef = -(zfar + znear) / (zfar - znear)
-        d_coef = -(np.float32(2) * zfar * znear) / (zfar - znear)
-        c_coef = np.float32(-0.5) * c_coef - np.float32(0.5)
-        d_coef = np.float32(-0.5) * d_coef
-        return (d_coef / (zbuf.astype(np.float64) + c_coef)).astype(np.float32)
 
     def render_depth(self, data: mujoco.MjData, seen_from: CameraConfig | None = None,
                      hide_object: bool = False, crop: ImageCrop | None = None) -> np.ndarray:
@@ -430,10 +400,7 @@ class DepthCamera:
 
     def close(self) -> None:
         """Release MuJoCo's render context (its buffers on the shared OpenGL context)."""
-        if self._ctx is not None:
-            self._gl.make_current()
-            self._ctx.free()
-            self._ctx = None
+        self._view.close()
 
 
 def sensor_depth(depth_m: np.ndarray, config: CameraConfig, rng: np.random.Generator) -> np.ndarray:

@@ -8,8 +8,9 @@ creates the renderer on an EGL context (Mesa's libEGL renders on the CPU) and se
 child processes. Any other failure to get a context raises :class:`RenderError` saying what to set. Setting
 ``MUJOCO_GL=egl`` before starting Python remains the most predictable choice.
 
-Used by the depth camera (:mod:`pickplace.perception.camera`, on the thread's shared context:
-:func:`shared_gl_context`) and the episode video (:mod:`pickplace.eval.report`, :func:`make_renderer`).
+Used by the depth camera (:mod:`pickplace.perception.camera`) and the environments' images
+(:mod:`pickplace.envs.common`), each through an :class:`OffscreenScene` on the thread's shared context
+(:func:`shared_gl_context`), and by the episode video (:mod:`pickplace.eval.report`, :func:`make_renderer`).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from collections.abc import Iterator
 from typing import Any
 
 import mujoco
+import numpy as np
 
 from pickplace.errors import PickPlaceError
 
@@ -131,6 +133,108 @@ def shared_gl_context() -> tuple[Any, str]:
     return made
 
 
+#: Room in a scene beyond one entry per geom of the model, for what MuJoCo adds to it (frames, contacts, ...).
+DECOR_GEOMS = 1000
+
+
+class OffscreenScene:
+    """What a ``mujoco.Renderer`` holds, a model's MuJoCo scene (``MjvScene``) and render context (``MjrContext``,
+    with its offscreen buffer), on the thread's shared OpenGL context (:func:`shared_gl_context`) instead of one of
+    its own: the same images, for a tenth of the cost to make on a software OpenGL. No text is drawn (the smallest
+    font).
+
+    Args:
+        m: The model.
+        width, height: The largest image it renders (px), within the model's offscreen buffer.
+        decor_geoms: Room in the scene beyond one entry per geom of the model (see :data:`DECOR_GEOMS`).
+
+    Raises:
+        RenderError: no OpenGL context, or an image larger than the model's offscreen buffer.
+    """
+
+    def __init__(self, m: mujoco.MjModel, width: int, height: int, decor_geoms: int = DECOR_GEOMS) -> None:
+        check_size(m, width, height)
+        self.model, self.width, self.height = m, width, height
+        self.gl, self.backend = shared_gl_context()
+        self.scene = mujoco.MjvScene(m, maxgeom=m.ngeom + decor_geoms)
+        self.gl.make_current()
+        try:
+            self.context: mujoco.MjrContext | None = mujoco.MjrContext(m, mujoco.mjtFontScale.mjFONTSCALE_50)
+        except Exception as exc:  # an OpenGL error
+            raise RenderError(f"cannot make MuJoCo's render context on the {self.backend} backend "
+                              f"({type(exc).__name__}: {exc}); {GL_HINT}") from exc
+        self.context.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR  # (the mapping metric_depth undoes)
+
+    def update(self, data: mujoco.MjData, camera: mujoco.MjvCamera | str,
+               option: mujoco.MjvOption | None = None) -> mujoco.MjvScene:
+        """Update the scene from ``data`` as seen by ``camera`` (a free camera, or a model camera's name), with the
+        visualisation ``option`` (default: MuJoCo's); returns the scene."""
+        if isinstance(camera, str):
+            cam_id = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_CAMERA, camera)
+            if cam_id < 0:
+                raise RenderError(f"the model has no camera named {camera!r}")
+            camera = mujoco.MjvCamera()
+            camera.type, camera.fixedcamid = mujoco.mjtCamera.mjCAMERA_FIXED, cam_id
+        mujoco.mjv_updateScene(self.model, data, option if option is not None else mujoco.MjvOption(), None, camera,
+                               mujoco.mjtCatBit.mjCAT_ALL, self.scene)
+        return self.scene
+
+    def draw(self, width: int, height: int, segment: bool = False,
+             rgb: np.ndarray | None = None, depth: np.ndarray | None = None) -> None:
+        """Render the scene (as last updated) into the bottom-left ``width`` x ``height`` px of the offscreen
+        buffer, with MuJoCo's segmentation colours if ``segment`` (which also gives the depth of its depth mode: no
+        lighting, no transparency), and read its colours into ``rgb`` (height, width, 3) uint8 and its depth buffer
+        into ``depth`` (height, width) float32, either or both, as OpenGL's rows come (bottom first)."""
+        ctx = self.context
+        if ctx is None:
+            raise RuntimeError("render cannot be called after close")
+        rect = mujoco.MjrRect(0, 0, width, height)
+        self.gl.make_current()
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, ctx)  # (this context's, on the shared one)
+        flags = self.scene.flags.copy()
+        if segment:
+            self.scene.flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = True
+            self.scene.flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = True
+        try:
+            mujoco.mjr_render(rect, self.scene, ctx)
+            mujoco.mjr_readPixels(rgb, depth, rect, ctx)
+        finally:
+            np.copyto(self.scene.flags, flags)
+
+    def metric_depth(self, zbuf: np.ndarray) -> np.ndarray:
+        """MuJoCo's (reversed-Z, perspective) depth buffer (H, W) as metric depth along the optical axis (m),
+        float32, computed as ``mujoco.Renderer.render`` computes it."""
+        m = self.model
+        zfar = np.float32(m.vis.map.zfar * m.stat.extent)
+        znear = np.float32(m.vis.map.znear * m.stat.extent)
+        c_coef = -(zfar + znear) / (zfar - znear)
+        d_coef = -(np.float32(2) * zfar * znear) / (zfar - znear)
+        c_coef = np.float32(-0.5) * c_coef - np.float32(0.5)
+        d_coef = np.float32(-0.5) * d_coef
+        return (d_coef / (zbuf.astype(np.float64) + c_coef)).astype(np.float32)
+
+    def rgb(self, data: mujoco.MjData, camera: mujoco.MjvCamera | str) -> np.ndarray:
+        """The image (height, width, 3) uint8 of ``camera``, lit as the viewer lights it (``Renderer.render``)."""
+        self.update(data, camera)
+        out = np.empty((self.height, self.width, 3), dtype=np.uint8)
+        self.draw(self.width, self.height, rgb=out)
+        return np.flipud(out).copy()
+
+    def depth(self, data: mujoco.MjData, camera: mujoco.MjvCamera | str) -> np.ndarray:
+        """The metric depth (height, width) float32 (m) of ``camera``'s pixels (``Renderer.render``'s depth mode)."""
+        self.update(data, camera)
+        zbuf = np.empty((self.height, self.width), dtype=np.float32)
+        self.draw(self.width, self.height, segment=True, depth=zbuf)
+        return np.flipud(self.metric_depth(zbuf)).copy()
+
+    def close(self) -> None:
+        """Release the render context (its buffers on the shared OpenGL context); idempotent."""
+        if self.context is not None:
+            self.gl.make_current()
+            self.context.free()
+            self.context = None
+
+
 def make_renderer(m: mujoco.MjModel, width: int, height: int) -> tuple[mujoco.Renderer, str]:
     """A ``mujoco.Renderer`` of ``width`` x ``height`` px on a working OpenGL backend, and the backend's name.
 
@@ -146,4 +250,5 @@ def make_renderer(m: mujoco.MjModel, width: int, height: int) -> tuple[mujoco.Re
                               f"({type(exc).__name__}: {exc}); {GL_HINT}") from exc
 
 
-__all__ = ["GL_HINT", "RenderError", "check_size", "make_renderer", "shared_gl_context"]
+__all__ = ["DECOR_GEOMS", "GL_HINT", "OffscreenScene", "RenderError", "check_size", "make_renderer",
+           "shared_gl_context"]
