@@ -295,3 +295,32 @@ def test_cameras_share_their_threads_opengl_context(robot: Robot, exact) -> None
     thread.join()
     assert seen["context"] is not shared_gl_context()[0]
     np.testing.assert_array_equal(seen["depth"], depth)
+
+
+def test_an_offscreen_scene_draws_what_a_mujoco_renderer_draws(robot: Robot) -> None:
+    """An OffscreenScene on the shared context gives a mujoco.Renderer's lit image and depth, to the bit, for a
+    camera of the model; a camera the model does not have is named in the error."""
+    from pickplace.envs.common import CAMERA
+    from pickplace.perception.render import OffscreenScene, RenderError, make_renderer
+
+    d = robot.make_data()
+    mujoco.mj_forward(robot.mj, d)
+    renderer, _ = make_renderer(robot.mj, 160, 120)
+    try:
+        renderer.update_scene(d, camera=CAMERA)
+        rgb = renderer.render().copy()
+        renderer.enable_depth_rendering()
+        renderer.update_scene(d, camera=CAMERA)
+        depth = renderer.render().copy()
+    finally:
+        renderer.close()
+    view = OffscreenScene(robot.mj, 160, 120)
+    try:
+        np.testing.assert_array_equal(view.rgb(d, CAMERA), rgb)
+        np.testing.assert_array_equal(view.depth(d, CAMERA), depth)
+        with pytest.raises(RenderError, match="no camera named 'nope'"):
+            view.rgb(d, "nope")
+    finally:
+        view.close()
+    with pytest.raises(RuntimeError, match="after close"):
+        view.rgb(d, CAMERA)
