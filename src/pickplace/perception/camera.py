@@ -302,8 +302,6 @@ class DepthCamera:
         differs by microns (a handful of pixels in an image).
         """
         c, view = self.config, self._view
-        if view.context is None:
-            raise RuntimeError("render cannot be called after close")
         scene = view.update(data, camera, option)
         if crop is not None and (crop.width, crop.height) == (c.width_px, c.height_px):
             crop = None  # the full frame

@@ -130,12 +130,11 @@ class ObstacleCamera:
             depth = sensor_depth(exact, self.config, self.rng)
             self.images += 1
             cloud = point_cloud(depth, self.config, ~mask)
-            lo, hi = self.view.table_box
             # above the table by more than CLEARANCE_SIGMAS times the depth noise at the point's own depth
             depth_m = (cloud - np.asarray(self.config.position_m)) @ self.config.R_world_camera[:, 2]
             clearance_m = CLEARANCE_SIGMAS * self.config.depth_sigma_m(depth_m)
             keep = cloud[:, 2] > self.table_height_m + clearance_m
-            keep[keep] = over_box(cloud[keep], (lo, hi))
+            keep[keep] = over_box(cloud[keep], self.view.table_box)
             for centre, radius in exclude:
                 keep &= np.linalg.norm(cloud - centre, axis=1) > radius
             return cloud[keep]

@@ -157,6 +157,7 @@ class OffscreenScene:
         self.model, self.width, self.height = m, width, height
         self.gl, self.backend = shared_gl_context()
         self.scene = mujoco.MjvScene(m, maxgeom=m.ngeom + decor_geoms)
+        self._default_option = mujoco.MjvOption()  # MuJoCo's visualisation defaults
         self.gl.make_current()
         try:
             self.context: mujoco.MjrContext | None = mujoco.MjrContext(m, mujoco.mjtFontScale.mjFONTSCALE_50)
@@ -175,8 +176,8 @@ class OffscreenScene:
                 raise RenderError(f"the model has no camera named {camera!r}")
             camera = mujoco.MjvCamera()
             camera.type, camera.fixedcamid = mujoco.mjtCamera.mjCAMERA_FIXED, cam_id
-        mujoco.mjv_updateScene(self.model, data, option if option is not None else mujoco.MjvOption(), None, camera,
-                               mujoco.mjtCatBit.mjCAT_ALL, self.scene)
+        mujoco.mjv_updateScene(self.model, data, option if option is not None else self._default_option, None,
+                               camera, mujoco.mjtCatBit.mjCAT_ALL, self.scene)
         return self.scene
 
     def draw(self, width: int, height: int, segment: bool = False,

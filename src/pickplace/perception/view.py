@@ -210,6 +210,15 @@ def register_offset(measured: np.ndarray, model: np.ndarray, region: np.ndarray,
     return config.R_world_camera @ np.array([du * z / f, dv * z / f, dz]), np.array([du, dv])
 
 
+def _image_bounds(config: CameraConfig, p_camera: np.ndarray) -> tuple[float, float, float, float] | None:
+    """The image coordinates (px) ``u_lo, u_hi, v_lo, v_hi`` that points ``p_camera`` (3, N) (m, the camera's
+    frame) span, or None if one of them is not beyond the camera's nearest range."""
+    if np.any(p_camera[2] <= config.min_range_m):
+        return None
+    u, v = config.image_coordinates(p_camera)
+    return float(u.min()), float(u.max()), float(v.min()), float(v.max())
+
+
 class TableCamera:
     """The robot's depth camera over the table (see the module's docstring).
 
@@ -306,11 +315,8 @@ class TableCamera:
         top = self.robot.scene.table_height_m
         corners = np.array([[x, y, z] for x in (x0, x1) for y in (y0, y1)
                             for z in (top - TABLE_BAND_M, top + TABLE_BAND_M + self.tallest_m)])
-        p = c.R_world_camera.T @ (corners - np.asarray(c.position_m)).T
-        if np.any(p[2] <= c.min_range_m):
-            return None
-        u, v = c.image_coordinates(p)
-        return ImageCrop.around(float(u.min()), float(u.max()), float(v.min()), float(v.max()), c, 2)
+        bounds = _image_bounds(c, c.R_world_camera.T @ (corners - np.asarray(c.position_m)).T)
+        return None if bounds is None else ImageCrop.around(*bounds, c, 2)
 
     def _hand_bounds(self, d: mujoco.MjData) -> tuple[float, float, float, float] | None:
         """Where the pixels of the robot's own points within :data:`HAND_RADIUS_M` of the tcp can be in the image
@@ -321,10 +327,7 @@ class TableCamera:
         tcp = d.site_xpos[self.robot.handles.tcp_site]
         corners = (c.R_world_camera.T @ (tcp - np.asarray(c.position_m)))[:, None] + HAND_RADIUS_M * np.array(
             [[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]).T
-        if np.any(corners[2] <= c.min_range_m):
-            return None
-        u, v = c.image_coordinates(corners)
-        return float(u.min()), float(u.max()), float(v.min()), float(v.max())
+        return _image_bounds(c, corners)
 
     def _look(self, d: mujoco.MjData, near: pin.SE3 | None,
               from_hand: bool) -> tuple[ImageCrop | None, np.ndarray | None]:
@@ -409,15 +412,17 @@ class TableCamera:
                 own, hand = self._own_hand(d, known, model, crop)
             else:
                 offset, mask = np.zeros(3), ndimage.binary_dilation(known, iterations=MASK_MARGIN_PX)
+            # a look over the whole image back-projects only what can show the table (the noise is drawn on all)
+            table_only = self._table_crop if crop is None and not from_hand else None
             clouds = []
             for _ in range(views):
                 depth = self._frame(exact)
                 if from_hand:
                     offset, mask = self._hand_offset(depth, known, own, hand)
                 pixels = ~mask if window is None else ~mask & window
-                if crop is None and not from_hand and self._table_crop is not None:  # only what can show the table
-                    rows, cols = self._table_crop.slices
-                    cloud = point_cloud(depth[rows, cols], self.config, pixels[rows, cols], crop=self._table_crop)
+                if table_only is not None:
+                    rows, cols = table_only.slices
+                    cloud = point_cloud(depth[rows, cols], self.config, pixels[rows, cols], crop=table_only)
                 else:
                     cloud = point_cloud(depth, self.config, pixels, crop=crop)
                 clouds.append(cloud - offset)
